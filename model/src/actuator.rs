@@ -1,0 +1,172 @@
+//! Double-rod actuator (section 4.1): two compressible chambers and the moving mass.
+
+use crate::friction::{dry_friction, viscous_friction, FrictionParams};
+use crate::params::GRAVITY;
+
+/// Smallest chamber volume the model accepts, as a fraction of the dead volume. The end
+/// stops keep the piston within a fraction of a millimetre of the stroke ends, so this
+/// floor is never reached in a physical run; it only keeps trial states of the
+/// integrator from dividing by a vanishing volume.
+pub const MIN_VOLUME_FRACTION: f64 = 0.1;
+
+/// End-stop contact stiffness (N/m): steel on steel through the rod, stiff enough that
+/// the full 210 bar force (about 20 kN) compresses it by only 0.2 mm.
+pub const END_STOP_STIFFNESS: f64 = 1e8;
+
+/// End-stop contact damping (N.s/m): near-critical for the 5.8 kg piston on that
+/// stiffness (2*sqrt(k*m) = 4.8e4), so the piston does not bounce off the stop.
+pub const END_STOP_DAMPING: f64 = 4.8e4;
+
+/// Absolute pressure at which the oil releases gas and vapour (Pa). Chamber pressures
+/// cannot fall below it: the mixture turns infinitely compliant there.
+pub const CAVITATION_PRESSURE: f64 = 0.05e5;
+
+/// Width of the band above the cavitation pressure over which the stiffness of the
+/// oil fades to zero (Pa): a smooth clamp, so the integrator sees no kink.
+pub const CAVITATION_BAND: f64 = 0.5e5;
+
+/// Factor applied to the bulk modulus near cavitation: 1 above the band, fading to 0 at
+/// the cavitation pressure, 0 below. dP/dt = factor*beta/V*sum(Q) then cannot carry the
+/// pressure below the floor, whatever the flows: the documented clamp of the state.
+pub fn cavitation_factor(p: f64) -> f64 {
+    let s = ((p - CAVITATION_PRESSURE) / CAVITATION_BAND).clamp(0.0, 1.0);
+    s * s * (3.0 - 2.0 * s) // smoothstep: C1 at both ends of the band
+}
+
+/// The actuator as the bench assembles it.
+#[derive(Debug, Clone)]
+pub struct Actuator {
+    pub area: f64,
+    pub stroke: f64,
+    pub dead_volume: f64,
+    /// Oil volume merged into each chamber from the manifold (m3).
+    pub extra_volume: [f64; 2],
+    /// Mass accelerated by the net force: piston, payload and lumped fluid mass (kg).
+    pub inertial_mass: f64,
+    /// Mass that weighs on the piston: piston and payload (kg).
+    pub weight_mass: f64,
+    /// Q12 = K (P1 - P2) (m3/s/Pa), (4.1)
+    pub internal_leakage: f64,
+    /// Qif = K (Pi - PT) (m3/s/Pa), (4.1)
+    pub external_leakage: f64,
+    pub viscous: f64,
+    pub friction: Option<FrictionParams>,
+}
+
+/// Forces and acceleration at one state.
+#[derive(Debug, Clone, Copy, PartialEq)]
+pub struct Motion {
+    pub acceleration: f64,
+    pub friction: f64,
+}
+
+impl Actuator {
+    /// (4.2) chamber volumes, measured from mid stroke: V_i = V_dead + A (stroke/2 +- y).
+    pub fn chamber_volumes(&self, y: f64) -> [f64; 2] {
+        let half = 0.5 * self.stroke;
+        let floor = MIN_VOLUME_FRACTION * self.dead_volume;
+        [
+            (self.dead_volume + self.area * (half + y)).max(floor) + self.extra_volume[0],
+            (self.dead_volume + self.area * (half - y)).max(floor) + self.extra_volume[1],
+        ]
+    }
+
+    /// Contact force of the end stops (N), zero inside the stroke.
+    pub fn end_stop_force(&self, y: f64, v: f64) -> f64 {
+        let half = 0.5 * self.stroke;
+        if y > half {
+            -END_STOP_STIFFNESS * (y - half) - END_STOP_DAMPING * v.max(0.0)
+        } else if y < -half {
+            END_STOP_STIFFNESS * (-half - y) - END_STOP_DAMPING * v.min(0.0)
+        } else {
+            0.0
+        }
+    }
+
+    /// (4.4) M d2y/dt2 = A (P1 - P2) - M g - F_fric - F_ext (+ end stops). The fluid
+    /// inertia term F_fluid of (4.4) is carried either by the manifold passages or by the
+    /// lumped fluid mass in `inertial_mass`; fluid weight in the chambers is neglected
+    /// (a few grams of oil against 5.8 kg).
+    pub fn motion(&self, y: f64, v: f64, p: [f64; 2], f_ext: f64) -> Motion {
+        let driving = self.area * (p[0] - p[1]) - self.weight_mass * GRAVITY - f_ext
+            + self.end_stop_force(y, v);
+        let mut friction = viscous_friction(self.viscous, v);
+        if let Some(fp) = &self.friction {
+            // The Sidhom branches depend on the sign of the acceleration, which friction
+            // itself changes: the sign of the force that drives the motion decides
+            // instead, so friction stays an explicit function of the state.
+            friction += dry_friction(fp, v, driving * v > 0.0);
+        }
+        Motion {
+            acceleration: (driving - friction) / self.inertial_mass,
+            friction,
+        }
+    }
+
+    /// (4.1) leakage flows: piston (chamber 1 to 2) and each chamber to the drain.
+    pub fn leakage(&self, p: [f64; 2], p_tank: f64) -> (f64, [f64; 2]) {
+        (
+            self.internal_leakage * (p[0] - p[1]),
+            [
+                self.external_leakage * (p[0] - p_tank),
+                self.external_leakage * (p[1] - p_tank),
+            ],
+        )
+    }
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    fn actuator() -> Actuator {
+        Actuator {
+            area: 9.456e-4,
+            stroke: 0.3,
+            dead_volume: 14.184e-6,
+            extra_volume: [0.0; 2],
+            inertial_mass: 5.8,
+            weight_mass: 5.8,
+            internal_leakage: 0.0,
+            external_leakage: 0.0,
+            viscous: 0.0,
+            friction: None,
+        }
+    }
+
+    #[test]
+    fn mid_stroke_volume_is_the_thesis_value() {
+        let v = actuator().chamber_volumes(0.0);
+        assert!((v[0] - 1.56e-4).abs() < 1e-7 && v[0] == v[1]);
+        let end = actuator().chamber_volumes(-0.15);
+        assert!((end[0] - 14.184e-6).abs() < 1e-12);
+    }
+
+    #[test]
+    fn volumes_stay_positive_beyond_the_stops() {
+        for y in [-1.0, -0.2, 0.2, 1.0] {
+            assert!(actuator().chamber_volumes(y).iter().all(|v| *v > 0.0));
+        }
+    }
+
+    #[test]
+    fn hanging_piston_needs_weight_over_area() {
+        let a = actuator();
+        let dp = a.weight_mass * GRAVITY / a.area;
+        let m = a.motion(0.0, 0.0, [100e5 + dp, 100e5], 0.0);
+        assert!(m.acceleration.abs() < 1e-9);
+    }
+
+    #[test]
+    fn end_stop_pushes_back_and_cavitation_factor_is_a_smooth_clamp() {
+        let a = actuator();
+        assert!(a.end_stop_force(0.1501, 0.0) < 0.0 && a.end_stop_force(-0.1501, 0.0) > 0.0);
+        assert_eq!(a.end_stop_force(0.1, 1.0), 0.0);
+        assert_eq!(cavitation_factor(CAVITATION_PRESSURE - 1.0), 0.0);
+        assert_eq!(
+            cavitation_factor(CAVITATION_PRESSURE + CAVITATION_BAND),
+            1.0
+        );
+        assert!(cavitation_factor(CAVITATION_PRESSURE + 0.5 * CAVITATION_BAND) == 0.5);
+    }
+}

@@ -1,0 +1,485 @@
+//! The assembled bench: SV1, SV2, manifold and actuator between supply and tank, in one
+//! state vector for one stiff solver.
+//!
+//! State layout: `[y, v, P1, P2 | SV1 states | SV2 states | node pressures | passage flows]`.
+
+use crate::actuator::{cavitation_factor, Actuator};
+use crate::effects::Effect;
+use crate::fluid::FluidParams;
+use crate::manifold::{Circuit, ManifoldConfig, Port};
+use crate::params::{Mode, ParamError, Params};
+use crate::servovalve::reduced::ReducedServovalve;
+use crate::servovalve::{PortPressures, Servovalve};
+use crate::solver::{self, SolverError, SolverStats, Tolerances};
+
+/// Inputs held constant over one integration interval.
+#[derive(Debug, Clone, Copy, PartialEq, Default, serde::Serialize, serde::Deserialize)]
+pub struct Inputs {
+    /// Servovalve commands (V).
+    pub u1: f64,
+    pub u2: f64,
+    /// External force on the rod (N), opposing positive y.
+    pub f_ext: f64,
+}
+
+/// Everything the bench shows at one instant.
+#[derive(Debug, Clone, Copy, PartialEq, Default)]
+pub struct Outputs {
+    pub y: f64,
+    pub v: f64,
+    pub a: f64,
+    pub p1: f64,
+    pub p2: f64,
+    /// Pressures at the servovalve ports.
+    pub p_a1: f64,
+    pub p_b1: f64,
+    pub p_a2: f64,
+    pub p_b2: f64,
+    /// Flows leaving the servovalve ports.
+    pub q_a1: f64,
+    pub q_b1: f64,
+    pub q_a2: f64,
+    pub q_b2: f64,
+    /// Flows from the manifold into the chambers.
+    pub q1: f64,
+    pub q2: f64,
+    /// Spool positions (m).
+    pub x_s1: f64,
+    pub x_s2: f64,
+    pub friction: f64,
+}
+
+/// Indices into the state vector.
+#[derive(Debug, Clone, Copy, PartialEq)]
+struct Layout {
+    sv: [usize; 2],
+    nodes: usize,
+    passages: usize,
+    len: usize,
+}
+
+const Y: usize = 0;
+const V: usize = 1;
+const P1: usize = 2;
+
+/// The bench model: parameters turned into the elements the right-hand side needs.
+#[derive(Debug)]
+pub struct Bench {
+    params: Params,
+    valves: [Box<dyn Servovalve>; 2],
+    circuit: Circuit,
+    actuator: Actuator,
+    fluid: FluidParams,
+    air: bool,
+    layout: Layout,
+}
+
+impl Bench {
+    pub fn new(params: &Params) -> Result<Bench, ParamError> {
+        params.validate()?;
+        let p = params;
+        let on = |e: Effect| p.has(e);
+        // (A.14)-(A.16): viscosity at the oil temperature, or at the reference when the
+        // temperature effect is off; laminar conductances scale with 1/mu, viscous
+        // friction of the hydrostatic bearings with mu.
+        let mut fluid = p.fluid;
+        if !on(Effect::Temperature) {
+            fluid.temperature = fluid.reference_temperature;
+        }
+        let mu_ratio = fluid.viscosity_ratio();
+        let viscosity =
+            fluid.dynamic_viscosity(fluid.temperature, crate::fluid::ATMOSPHERIC_PRESSURE);
+        let valve = |vp| -> Box<dyn Servovalve> {
+            Box::new(ReducedServovalve::new(
+                vp,
+                on(Effect::ValveDynamics),
+                on(Effect::InternalLeakage),
+                1.0 / mu_ratio,
+            ))
+        };
+        let valves = [valve(&p.sv1), valve(p.sv2_effective())];
+        let circuit = Circuit::new(
+            p.mode,
+            &ManifoldConfig {
+                volume: on(Effect::ManifoldVolume),
+                inertia: on(Effect::ManifoldInertia),
+                losses: on(Effect::ManifoldLosses),
+                volume_scale: p.manifold.volume_scale,
+                inertia_scale: p.manifold.inertia_scale,
+                loss_scale: p.manifold.loss_scale,
+                density: fluid.density,
+                viscosity,
+            },
+        );
+        let a = &p.actuator;
+        let payload = if on(Effect::Payload) {
+            a.payload_mass
+        } else {
+            0.0
+        };
+        let leak = on(Effect::InternalLeakage);
+        let actuator = Actuator {
+            area: a.area,
+            stroke: a.stroke,
+            dead_volume: a.dead_volume,
+            extra_volume: circuit.chamber_volume,
+            inertial_mass: a.mass + payload + circuit.added_mass,
+            weight_mass: a.mass + payload,
+            internal_leakage: if leak {
+                a.internal_leakage / mu_ratio
+            } else {
+                0.0
+            },
+            external_leakage: if leak {
+                a.external_leakage / mu_ratio
+            } else {
+                0.0
+            },
+            viscous: if on(Effect::ViscousFriction) {
+                a.viscous_friction * mu_ratio
+            } else {
+                0.0
+            },
+            friction: on(Effect::DryFriction).then_some(p.friction),
+        };
+        let n0 = valves[0].n_states();
+        let n1 = valves[1].n_states();
+        let sv = [4, 4 + n0];
+        let nodes = 4 + n0 + n1;
+        let passages = nodes + circuit.nodes.len();
+        let layout = Layout {
+            sv,
+            nodes,
+            passages,
+            len: passages + circuit.passages.len(),
+        };
+        Ok(Bench {
+            params: p.clone(),
+            valves,
+            circuit,
+            actuator,
+            air: on(Effect::EntrainedAir),
+            fluid,
+            layout,
+        })
+    }
+
+    pub fn params(&self) -> &Params {
+        &self.params
+    }
+
+    pub fn circuit(&self) -> &Circuit {
+        &self.circuit
+    }
+
+    pub fn actuator(&self) -> &Actuator {
+        &self.actuator
+    }
+
+    pub fn n_states(&self) -> usize {
+        self.layout.len
+    }
+
+    /// Mode 1 drives the actuator with SV1 alone: SV2 stays connected, at null.
+    fn commands(&self, inputs: &Inputs) -> [f64; 2] {
+        match self.params.mode {
+            Mode::FourWaySingle => [inputs.u1, 0.0],
+            _ => [inputs.u1, inputs.u2],
+        }
+    }
+
+    /// Rest state at position `y0` with both chambers at half supply pressure plus what
+    /// holds the piston's weight, manifold nodes at the pressure of what they join.
+    pub fn initial_state(&self, y0: f64, inputs: &Inputs) -> Vec<f64> {
+        let p = &self.params;
+        let mut x = vec![0.0; self.layout.len];
+        let mid = 0.5 * (p.supply_pressure + p.tank_pressure);
+        let hold = self.actuator.weight_mass * crate::params::GRAVITY / self.actuator.area;
+        x[Y] = y0;
+        x[P1] = mid + 0.5 * hold;
+        x[P1 + 1] = mid - 0.5 * hold;
+        let u = self.commands(inputs);
+        for (k, valve) in self.valves.iter().enumerate() {
+            let o = self.layout.sv[k];
+            valve.initial_state(u[k], &mut x[o..o + valve.n_states()]);
+        }
+        for k in 0..self.circuit.nodes.len() {
+            x[self.layout.nodes + k] = mid;
+        }
+        // nodes that only see a chamber through passages start at its pressure
+        for pass in &self.circuit.passages {
+            if let (Port::Node(n), Port::Chamber(c)) = (pass.from, pass.to) {
+                x[self.layout.nodes + n] = x[P1 + c];
+            }
+        }
+        x
+    }
+
+    /// Absolute tolerances and typical magnitudes of every state.
+    pub fn state_scales(&self, rtol: f64) -> (Vec<f64>, Vec<f64>) {
+        let n = self.layout.len;
+        let mut atol = vec![0.0; n];
+        let mut scale = vec![0.0; n];
+        // 1 nm, 1 um/s, 1 Pa, 1e-3 L/min: well below sensor resolution, tightened with rtol
+        let f = (rtol / 1e-6).min(1.0);
+        atol[Y] = 1e-9 * f;
+        atol[V] = 1e-6 * f;
+        atol[P1] = 1.0 * f;
+        atol[P1 + 1] = 1.0 * f;
+        scale[Y] = 1e-3;
+        scale[V] = 1e-2;
+        scale[P1] = 1e6;
+        scale[P1 + 1] = 1e6;
+        for (k, valve) in self.valves.iter().enumerate() {
+            let o = self.layout.sv[k];
+            let m = valve.n_states();
+            valve.absolute_tolerances(&mut atol[o..o + m]);
+            for i in o..o + m {
+                scale[i] = atol[i] * 1e4;
+                atol[i] *= f;
+            }
+        }
+        for i in self.layout.nodes..self.layout.passages {
+            atol[i] = 1.0 * f;
+            scale[i] = 1e6;
+        }
+        for i in self.layout.passages..n {
+            atol[i] = 1e-3 * crate::params::LPM * f;
+            scale[i] = 1e-5;
+        }
+        (atol, scale)
+    }
+
+    fn pressure(&self, x: &[f64], port: Port) -> f64 {
+        match port {
+            Port::Chamber(c) => x[P1 + c],
+            Port::Node(k) => x[self.layout.nodes + k],
+            Port::Tank => self.params.tank_pressure,
+        }
+    }
+
+    /// Effective bulk modulus at absolute pressure p, with the cavitation clamp.
+    fn bulk_modulus(&self, p: f64) -> f64 {
+        self.fluid.effective_bulk_modulus(p, self.air) * cavitation_factor(p)
+    }
+
+    /// Valve port flows for the state.
+    fn valve_flows(&self, x: &[f64], u: [f64; 2]) -> [[f64; 2]; 2] {
+        let mut q = [[0.0; 2]; 2];
+        for (k, valve) in self.valves.iter().enumerate() {
+            let ports = self.circuit.valve_ports[k];
+            let o = self.layout.sv[k];
+            let f = valve.flows(
+                u[k],
+                &x[o..o + valve.n_states()],
+                &PortPressures {
+                    supply: self.params.supply_pressure,
+                    tank: self.params.tank_pressure,
+                    a: self.pressure(x, ports[0]),
+                    b: self.pressure(x, ports[1]),
+                },
+            );
+            q[k] = [f.a, f.b];
+        }
+        q
+    }
+
+    /// Right-hand side dx/dt = f(x, inputs). Returns the chamber inflows (Q1, Q2) from
+    /// the manifold side, which the outputs need too.
+    pub fn derivatives(&self, x: &[f64], inputs: &Inputs, dx: &mut [f64]) -> [f64; 2] {
+        let l = &self.layout;
+        let act = &self.actuator;
+        let u = self.commands(inputs);
+        let p = [x[P1], x[P1 + 1]];
+        let nn = self.circuit.nodes.len();
+        let mut q_node = [0.0; 16];
+        let q_node = &mut q_node[..nn];
+        let mut q_ch = [0.0; 2];
+        let add = |port: Port, q: f64, q_node: &mut [f64], q_ch: &mut [f64; 2]| match port {
+            Port::Chamber(c) => q_ch[c] += q,
+            Port::Node(k) => q_node[k] += q,
+            Port::Tank => {}
+        };
+        let qv = self.valve_flows(x, u);
+        for (ports, flows) in self.circuit.valve_ports.iter().zip(&qv) {
+            for (port, q) in ports.iter().zip(flows) {
+                add(*port, *q, q_node, &mut q_ch);
+            }
+        }
+        for (k, pass) in self.circuit.passages.iter().enumerate() {
+            let q = x[l.passages + k];
+            add(pass.from, -q, q_node, &mut q_ch);
+            add(pass.to, q, q_node, &mut q_ch);
+            // (3.3) fluid inertia driven by the pressure difference less the losses
+            dx[l.passages + k] =
+                (self.pressure(x, pass.from) - self.pressure(x, pass.to) - pass.pressure_drop(q))
+                    / pass.inertance;
+        }
+        for r in &self.circuit.reducers {
+            q_node[r.node] -= r.flow(x[l.nodes + r.node], self.params.tank_pressure);
+        }
+        let q_in = q_ch;
+        // (4.1) chamber flow balance: leakages and the piston's displacement flow
+        let (q12, qf) = act.leakage(p, self.params.tank_pressure);
+        let vol = act.chamber_volumes(x[Y]);
+        let q_net = [
+            q_ch[0] - q12 - qf[0] - act.area * x[V],
+            q_ch[1] + q12 - qf[1] + act.area * x[V],
+        ];
+        for c in 0..2 {
+            dx[P1 + c] = self.bulk_modulus(p[c]) / vol[c] * q_net[c];
+        }
+        // (3.2) compressibility of the manifold nodes
+        for k in 0..nn {
+            let pk = x[l.nodes + k];
+            dx[l.nodes + k] = self.bulk_modulus(pk) / self.circuit.nodes[k].volume * q_node[k];
+        }
+        // (4.4) motion
+        dx[Y] = x[V];
+        dx[V] = act.motion(x[Y], x[V], p, inputs.f_ext).acceleration;
+        for (k, valve) in self.valves.iter().enumerate() {
+            let o = l.sv[k];
+            let m = valve.n_states();
+            valve.derivatives(u[k], &x[o..o + m], &mut dx[o..o + m]);
+        }
+        q_in
+    }
+
+    /// The outputs at state x.
+    pub fn outputs(&self, x: &[f64], inputs: &Inputs) -> Outputs {
+        let mut dx = vec![0.0; self.layout.len];
+        let q_in = self.derivatives(x, inputs, &mut dx);
+        let u = self.commands(inputs);
+        let qv = self.valve_flows(x, u);
+        let ports = &self.circuit.valve_ports;
+        let motion = self
+            .actuator
+            .motion(x[Y], x[V], [x[P1], x[P1 + 1]], inputs.f_ext);
+        let spool = |k: usize| {
+            let o = self.layout.sv[k];
+            self.valves[k].spool_position(u[k], &x[o..o + self.valves[k].n_states()])
+        };
+        Outputs {
+            y: x[Y],
+            v: x[V],
+            a: dx[V],
+            p1: x[P1],
+            p2: x[P1 + 1],
+            p_a1: self.pressure(x, ports[0][0]),
+            p_b1: self.pressure(x, ports[0][1]),
+            p_a2: self.pressure(x, ports[1][0]),
+            p_b2: self.pressure(x, ports[1][1]),
+            q_a1: qv[0][0],
+            q_b1: qv[0][1],
+            q_a2: qv[1][0],
+            q_b2: qv[1][1],
+            q1: q_in[0],
+            q2: q_in[1],
+            x_s1: spool(0),
+            x_s2: spool(1),
+            friction: motion.friction,
+        }
+    }
+}
+
+/// Complete simulation state: a plain value, cloned for FMU get/set state.
+#[derive(Debug, Clone, PartialEq, serde::Serialize, serde::Deserialize)]
+pub struct SimState {
+    pub t: f64,
+    pub x: Vec<f64>,
+    pub inputs: Inputs,
+}
+
+/// A bench with its state: set inputs, advance to a time, read outputs.
+#[derive(Debug)]
+pub struct Simulation {
+    bench: Bench,
+    state: SimState,
+    tolerances: Tolerances,
+    scales: Vec<f64>,
+    pub stats: SolverStats,
+}
+
+impl Simulation {
+    pub fn new(params: &Params) -> Result<Simulation, ParamError> {
+        let bench = Bench::new(params)?;
+        let inputs = Inputs::default();
+        let x = bench.initial_state(params.initial_position, &inputs);
+        let (atol, scales) = bench.state_scales(params.solver.rtol);
+        Ok(Simulation {
+            tolerances: Tolerances {
+                rtol: params.solver.rtol,
+                atol,
+            },
+            scales,
+            state: SimState { t: 0.0, x, inputs },
+            bench,
+            stats: SolverStats::default(),
+        })
+    }
+
+    pub fn bench(&self) -> &Bench {
+        &self.bench
+    }
+
+    pub fn time(&self) -> f64 {
+        self.state.t
+    }
+
+    pub fn set_inputs(&mut self, inputs: Inputs) {
+        self.state.inputs = inputs;
+    }
+
+    pub fn inputs(&self) -> Inputs {
+        self.state.inputs
+    }
+
+    pub fn outputs(&self) -> Outputs {
+        self.bench.outputs(&self.state.x, &self.state.inputs)
+    }
+
+    /// Integrate with the current inputs up to time `t`. On failure the state is left
+    /// where it was, so a caller can retry with a shorter interval.
+    pub fn advance_to(&mut self, t: f64) -> Result<(), SolverError> {
+        let inputs = self.state.inputs;
+        if inputs.u1.is_nan() || inputs.u2.is_nan() || !inputs.f_ext.is_finite() {
+            return Err(SolverError::NonFinite { t: self.state.t });
+        }
+        let mut x = self.state.x.clone();
+        let bench = &self.bench;
+        solver::integrate(
+            |_t, x, dx| {
+                bench.derivatives(x, &inputs, dx);
+            },
+            &mut x,
+            self.state.t,
+            t,
+            &self.tolerances,
+            &self.scales,
+            &mut self.stats,
+        )?;
+        self.state.x = x;
+        self.state.t = t;
+        Ok(())
+    }
+
+    pub fn state(&self) -> &SimState {
+        &self.state
+    }
+
+    /// Restore a state taken from a simulation of the same parameters.
+    pub fn set_state(&mut self, state: SimState) -> Result<(), String> {
+        if state.x.len() != self.bench.n_states() {
+            return Err(format!(
+                "state has {} values, this bench has {}",
+                state.x.len(),
+                self.bench.n_states()
+            ));
+        }
+        if !state.t.is_finite() || state.x.iter().any(|v| !v.is_finite()) {
+            return Err("state holds non-finite values".into());
+        }
+        self.state = state;
+        Ok(())
+    }
+}

@@ -1,0 +1,159 @@
+//! Sampled controllers around the bench and the loop that runs them.
+//!
+//! The bench's dSPACE board samples at 1 kHz and holds its outputs between samples
+//! (zero-order hold); with the `sensor_delay` effect on, the controller sees the plant as
+//! it was `sensors.delay` seconds before each sample. The thesis's other laws (issue 5)
+//! implement the same [`Controller`] trait.
+
+use crate::bench::{Inputs, Outputs, Simulation};
+use crate::effects::Effect;
+use crate::solver::SolverError;
+
+/// Sampling period of the bench's controller board (s), section 4.4.
+pub const SAMPLE_PERIOD: f64 = 1e-3;
+
+/// Saturation of the servovalve commands (V): the D765's rated input.
+pub const COMMAND_LIMIT: f64 = 10.0;
+
+/// What the controller receives at a sample.
+#[derive(Debug, Clone, Copy, PartialEq)]
+pub struct Measurement {
+    pub y: f64,
+    pub p1: f64,
+    pub p2: f64,
+}
+
+/// A discrete-time controller: at each sample, the measurement and the reference in,
+/// the two valve commands out.
+pub trait Controller {
+    fn update(&mut self, t: f64, reference: f64, m: &Measurement) -> [f64; 2];
+}
+
+/// Proportional position control u1 = -u2 = Kp (yd - y) (section 4.4), saturated.
+#[derive(Debug, Clone, Copy, PartialEq)]
+pub struct Proportional {
+    pub kp: f64,
+}
+
+impl Controller for Proportional {
+    fn update(&mut self, _t: f64, reference: f64, m: &Measurement) -> [f64; 2] {
+        let u = (self.kp * (reference - m.y)).clamp(-COMMAND_LIMIT, COMMAND_LIMIT);
+        [u, -u]
+    }
+}
+
+/// One recorded instant of a closed-loop run.
+#[derive(Debug, Clone, Copy, PartialEq)]
+pub struct Sample {
+    pub t: f64,
+    pub reference: f64,
+    pub inputs: Inputs,
+    pub out: Outputs,
+}
+
+/// Run `controller` on `sim` from its current time to `t_end`, sampling every `period`,
+/// recording the plant after each sample interval (and `substeps` times within it).
+pub fn run_closed_loop(
+    sim: &mut Simulation,
+    controller: &mut dyn Controller,
+    reference: &dyn Fn(f64) -> f64,
+    t_end: f64,
+    period: f64,
+    substeps: usize,
+) -> Result<Vec<Sample>, SolverError> {
+    let params = sim.bench().params();
+    let delay = if params.has(Effect::SensorDelay) {
+        params.sensors.delay
+    } else {
+        0.0
+    };
+    let mut trace = Vec::new();
+    // measurement history (time, value) for the delayed sensor
+    let mut history: Vec<(f64, Measurement)> = Vec::new();
+    let measure = |o: &Outputs| Measurement {
+        y: o.y,
+        p1: o.p1,
+        p2: o.p2,
+    };
+    history.push((sim.time(), measure(&sim.outputs())));
+    let n = ((t_end - sim.time()) / period).round() as usize;
+    let t0 = sim.time();
+    let f_ext = sim.inputs().f_ext;
+    for k in 0..n {
+        let t_k = t0 + k as f64 * period;
+        let m = delayed(&history, t_k - delay);
+        let yd = reference(t_k);
+        let u = controller.update(t_k, yd, &m);
+        sim.set_inputs(Inputs {
+            u1: u[0],
+            u2: u[1],
+            f_ext,
+        });
+        let substeps = substeps.max(1);
+        let mut points: Vec<f64> = (1..=substeps)
+            .map(|j| t_k + period * j as f64 / substeps as f64)
+            .collect();
+        // the instant a delayed sensor will read, so interpolation stays exact in time
+        if delay > 0.0 {
+            let t_read = t_k + period - delay.rem_euclid(period);
+            if t_read > t_k && t_read < t_k + period {
+                points.push(t_read);
+            }
+        }
+        points.sort_by(f64::total_cmp);
+        points.dedup_by(|a, b| (*a - *b).abs() < 1e-9 * period);
+        for t in points {
+            sim.advance_to(t)?;
+            let out = sim.outputs();
+            history.push((t, measure(&out)));
+            trace.push(Sample {
+                t,
+                reference: reference(t),
+                inputs: sim.inputs(),
+                out,
+            });
+        }
+        // keep only what a delayed read can still need
+        let keep_from = t_k - delay - 2.0 * period;
+        let drop = history.partition_point(|(t, _)| *t < keep_from);
+        if drop > 1 {
+            history.drain(..drop - 1);
+        }
+    }
+    Ok(trace)
+}
+
+/// Linear interpolation of the measurement history at time t (held before the start).
+fn delayed(history: &[(f64, Measurement)], t: f64) -> Measurement {
+    let i = history.partition_point(|(ti, _)| *ti <= t);
+    if i == 0 {
+        return history[0].1;
+    }
+    if i == history.len() {
+        return history[i - 1].1;
+    }
+    let (ta, a) = history[i - 1];
+    let (tb, b) = history[i];
+    let w = (t - ta) / (tb - ta);
+    let lerp = |x: f64, y: f64| x + w * (y - x);
+    Measurement {
+        y: lerp(a.y, b.y),
+        p1: lerp(a.p1, b.p1),
+        p2: lerp(a.p2, b.p2),
+    }
+}
+
+/// 95 % response time of a step recorded in `trace` that starts at `t_step` from
+/// `from` to `to`: the last time the position was outside the 5 % band around `to`.
+pub fn response_time_95(trace: &[Sample], t_step: f64, from: f64, to: f64) -> Option<f64> {
+    let band = 0.05 * (to - from).abs();
+    let last_out = trace
+        .iter()
+        .filter(|s| s.t >= t_step)
+        .filter(|s| (s.out.y - to).abs() > band)
+        .map(|s| s.t)
+        .fold(None, |acc: Option<f64>, t| {
+            Some(acc.map_or(t, |a| a.max(t)))
+        });
+    last_out.map(|t| t - t_step)
+}

@@ -1,0 +1,63 @@
+//! The servovalve interface shared by every valve model of the bench.
+//!
+//! A valve is a restriction: it takes the command and the pressures at its four ports
+//! and returns the flows at A and B (DESIGN.md, port causality). Models with internal
+//! dynamics own a slice of the bench state vector; static models own none.
+
+pub mod reduced;
+
+/// Absolute pressures at the four ports (Pa).
+#[derive(Debug, Clone, Copy, PartialEq)]
+pub struct PortPressures {
+    pub supply: f64,
+    pub tank: f64,
+    pub a: f64,
+    pub b: f64,
+}
+
+/// Flows leaving the valve at ports A and B into their lines (m3/s).
+#[derive(Debug, Clone, Copy, PartialEq, Default)]
+pub struct PortFlows {
+    pub a: f64,
+    pub b: f64,
+}
+
+/// One servovalve model. `command` is the valve input in volts as on the bench (+-10 V).
+pub trait Servovalve: std::fmt::Debug + Send + Sync {
+    /// Number of states this model owns in the bench state vector.
+    fn n_states(&self) -> usize;
+    /// Rest state for a constant command.
+    fn initial_state(&self, command: f64, x: &mut [f64]);
+    /// Absolute tolerances of the owned states (their natural scale times a small factor).
+    fn absolute_tolerances(&self, atol: &mut [f64]);
+    /// Time derivative of the owned states.
+    fn derivatives(&self, command: f64, x: &[f64], dx: &mut [f64]);
+    /// Spool position (m), positive opening P->A and B->T.
+    fn spool_position(&self, command: f64, x: &[f64]) -> f64;
+    /// Port flows for the current spool state and port pressures.
+    fn flows(&self, command: f64, x: &[f64], p: &PortPressures) -> PortFlows;
+}
+
+/// Orifice law with a laminar core: sign(dp)*sqrt(|dp|) away from zero, linear within
+/// about `dp_transition` of it, so the flow and its derivative stay finite at dp = 0
+/// (a sharp square root would give the stiff solver an infinite Jacobian at null).
+pub fn signed_sqrt(dp: f64, dp_transition: f64) -> f64 {
+    dp / (dp * dp + dp_transition * dp_transition).sqrt().sqrt()
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    #[test]
+    fn signed_sqrt_is_odd_smooth_and_turbulent_far_from_zero() {
+        let t = 1e4;
+        assert_eq!(signed_sqrt(0.0, t), 0.0);
+        assert!((signed_sqrt(-5e6, t) + signed_sqrt(5e6, t)).abs() < 1e-12);
+        assert!((signed_sqrt(100e5, t) / (100e5f64).sqrt() - 1.0).abs() < 1e-6);
+        // finite slope at zero: 1/sqrt(t)
+        let h = 1e-3;
+        let slope = (signed_sqrt(h, t) - signed_sqrt(-h, t)) / (2.0 * h);
+        assert!((slope * t.sqrt() - 1.0).abs() < 1e-6);
+    }
+}
