@@ -1,32 +1,14 @@
 //! The main job on the built-in thesis parameters: the section 4.4 step responses and the
 //! mode-1 closed-loop sweep with and without the manifold, written to `out/` as CSV, an
 //! SVG plot and a JSON summary.
-use hbmodel::control::{response_time_95, run_closed_loop, Proportional, SAMPLE_PERIOD};
+use hbmodel::control::{
+    response_time_95, run_closed_loop, sine_amplitude_ratio, Proportional, SAMPLE_PERIOD,
+};
 use hbmodel::{Effect, Mode, Params, Simulation};
-use std::f64::consts::PI;
 use std::fmt::Write;
 
 fn ratio(p: &Params, f: f64) -> f64 {
-    let amp = 3.4e-3;
-    let mut sim = Simulation::new(p).expect("valid parameters");
-    let settle = (4.0 / f).max(0.03);
-    let r = move |t: f64| amp * (2.0 * PI * f * t).sin();
-    let tr = run_closed_loop(
-        &mut sim,
-        &mut Proportional { kp: 1169.0 },
-        &r,
-        settle + 6.0 / f,
-        1e-3,
-        4,
-    )
-    .expect("the bench integrates");
-    let (mut s, mut c, mut n) = (0.0, 0.0, 0.0);
-    for k in tr.iter().filter(|k| k.t > settle) {
-        s += k.out.y * (2.0 * PI * f * k.t).sin();
-        c += k.out.y * (2.0 * PI * f * k.t).cos();
-        n += 1.0;
-    }
-    2.0 * s.hypot(c) / n / amp
+    sine_amplitude_ratio(p, 1169.0, 3.4e-3, f).expect("the bench integrates")
 }
 
 /// (label, colour, (frequency, ratio) points)

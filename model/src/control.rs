@@ -157,3 +157,40 @@ pub fn response_time_95(trace: &[Sample], t_step: f64, from: f64, to: f64) -> Op
         });
     last_out.map(|t| t - t_step)
 }
+
+/// Closed-loop amplitude ratio |Y/Yref| of the first harmonic for a sine reference of
+/// `amplitude` (m) at `frequency` (Hz) under proportional control `kp` (V/m), after the
+/// transient has settled (4 cycles or 30 ms), over 6 cycles.
+pub fn sine_amplitude_ratio(
+    params: &crate::params::Params,
+    kp: f64,
+    amplitude: f64,
+    frequency: f64,
+) -> Result<f64, crate::params::ParamError> {
+    use std::f64::consts::PI;
+    let mut sim = Simulation::new(params)?;
+    let settle = (4.0 / frequency).max(0.03);
+    let w = 2.0 * PI * frequency;
+    let reference = move |t: f64| amplitude * (w * t).sin();
+    let trace = run_closed_loop(
+        &mut sim,
+        &mut Proportional { kp },
+        &reference,
+        settle + 6.0 / frequency,
+        SAMPLE_PERIOD,
+        4,
+    )
+    .map_err(|e| crate::params::ParamError {
+        file: "<simulation>".into(),
+        line: None,
+        field: None,
+        message: e.to_string(),
+    })?;
+    let (mut s, mut c, mut n) = (0.0, 0.0, 0.0);
+    for k in trace.iter().filter(|k| k.t > settle) {
+        s += k.out.y * (w * k.t).sin();
+        c += k.out.y * (w * k.t).cos();
+        n += 1.0;
+    }
+    Ok(2.0 * s.hypot(c) / n / amplitude)
+}

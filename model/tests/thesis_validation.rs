@@ -1,7 +1,9 @@
 //! The bench physics against the thesis's figures (issue 2's acceptance checks).
 
 use hbmodel::actuator::Actuator;
-use hbmodel::control::{response_time_95, run_closed_loop, Proportional, SAMPLE_PERIOD};
+use hbmodel::control::{
+    response_time_95, run_closed_loop, sine_amplitude_ratio, Proportional, SAMPLE_PERIOD,
+};
 use hbmodel::manifold::{added_volume, equivalent_mass};
 use hbmodel::params::{Mode, Params};
 use hbmodel::{Bench, Effect, Inputs, Simulation};
@@ -139,35 +141,13 @@ fn proportional_steps_follow_section_4_4() {
     assert!(t[1] < t[0] && t[1] < t[2], "mode 2 is the fastest: {t:?}");
 }
 
-/// Closed-loop amplitude ratio y/y_ref for a 3.4 mm sine at f (first harmonic).
-fn closed_loop_ratio(p: &Params, f: f64) -> f64 {
-    let amp = 3.4e-3;
-    let mut sim = Simulation::new(p).unwrap();
-    let settle = (4.0 / f).max(0.03);
-    let measure = 6.0 / f;
-    let r = move |t: f64| amp * (2.0 * PI * f * t).sin();
-    let trace = run_closed_loop(
-        &mut sim,
-        &mut Proportional { kp: 1169.0 },
-        &r,
-        settle + measure,
-        1e-3,
-        4,
-    )
-    .unwrap();
-    let (mut s, mut c, mut n) = (0.0, 0.0, 0.0);
-    for k in trace.iter().filter(|k| k.t > settle) {
-        s += k.out.y * (2.0 * PI * f * k.t).sin();
-        c += k.out.y * (2.0 * PI * f * k.t).cos();
-        n += 1.0;
-    }
-    2.0 * s.hypot(c) / n / amp
-}
-
 /// Frequency of the highest amplitude-ratio peak above 60 Hz.
 fn resonance_peak(p: &Params) -> f64 {
     let freqs: Vec<f64> = (0..36).map(|k| 60.0 + 10.0 * k as f64).collect();
-    let ratios: Vec<f64> = freqs.iter().map(|f| closed_loop_ratio(p, *f)).collect();
+    let ratios: Vec<f64> = freqs
+        .iter()
+        .map(|f| sine_amplitude_ratio(p, 1169.0, 3.4e-3, *f).unwrap())
+        .collect();
     let (k, _) = ratios
         .iter()
         .enumerate()
