@@ -87,9 +87,9 @@ fn main() -> std::io::Result<()> {
     ] {
         without.effects.set(e, false);
     }
-    let freqs: Vec<f64> = (0..50)
+    let freqs: Vec<f64> = (0..60)
         .map(|k| 10.0 * 1.07f64.powi(k))
-        .filter(|f| *f < 450.0)
+        .filter(|f| *f < 460.0)
         .collect();
     let mut csv = String::from("frequency_hz,ratio_with_manifold,ratio_without_manifold\n");
     let (mut a, mut b) = (Vec::new(), Vec::new());

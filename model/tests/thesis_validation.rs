@@ -233,3 +233,72 @@ fn bad_parameter_file_names_file_line_field_and_bound() {
     );
     std::fs::remove_dir_all(&dir).unwrap();
 }
+
+#[test]
+fn every_effect_off_is_the_control_model_ii_1_without_friction() {
+    let p = Params::default(); // mode 3, no effect on
+    assert_eq!(p.effects.active().count(), 0);
+    let bench = Bench::new(&p).unwrap();
+    assert_eq!(bench.n_states(), 4, "y, v, P1, P2 only");
+    let (a, m, beta) = (p.actuator.area, p.actuator.mass, p.fluid.bulk_modulus);
+    let (ps, pt) = (p.supply_pressure, p.tank_pressure);
+    // (II.2) with the catalogue's rated drop over two lands: one land meters Qn at dPn/2
+    let phi = |pi: f64, u: f64| {
+        let qn = p.sv1.rated_flow / p.sv1.rated_command;
+        let dpn = 0.5 * p.sv1.rated_pressure_drop;
+        if u >= 0.0 {
+            qn * ((ps - pi).abs() / dpn).sqrt()
+        } else {
+            qn * ((pi - pt).abs() / dpn).sqrt()
+        }
+    };
+    for (y, v, p1, p2, u1, u2) in [
+        (0.01, 0.1, 120e5, 80e5, 2.0, -3.0),
+        (-0.05, -0.2, 60e5, 150e5, -4.0, 5.0),
+        (0.1, 0.0, 100e5, 100e5, 9.0, -9.0),
+    ] {
+        let mut x = bench.initial_state(0.0, &Inputs::default());
+        x.copy_from_slice(&[y, v, p1, p2]);
+        let mut dx = vec![0.0; 4];
+        bench.derivatives(&x, &Inputs { u1, u2, f_ext: 0.0 }, &mut dx);
+        let vol = bench.actuator().chamber_volumes(y);
+        // each right-hand side as its terms, so the tolerance follows their size
+        let terms = [
+            [v, 0.0],
+            [a / m * (p1 - p2), -9.81],
+            [-beta / vol[0] * a * v, beta / vol[0] * phi(p1, u1) * u1],
+            [beta / vol[1] * a * v, beta / vol[1] * phi(p2, u2) * u2],
+        ];
+        for (i, t) in terms.iter().enumerate() {
+            let want = t[0] + t[1];
+            // the valve's rounded edge (0.25 % of rated travel) is the only difference
+            let tol = 0.02 * (t[0].abs() + t[1].abs()).max(1e-9);
+            assert!(
+                (dx[i] - want).abs() <= tol,
+                "state {i}: {} vs {want}",
+                dx[i]
+            );
+        }
+    }
+}
+
+#[test]
+fn state_snapshot_restores_a_bit_identical_trajectory() {
+    let p = Params::thesis_bench(Mode::FourWayParallel);
+    let mut sim = Simulation::new(&p).unwrap();
+    sim.set_inputs(Inputs {
+        u1: 3.0,
+        u2: -3.0,
+        f_ext: 50.0,
+    });
+    sim.advance_to(0.005).unwrap();
+    let snapshot = sim.state().clone();
+    sim.advance_to(0.010).unwrap();
+    let first = sim.state().x.clone();
+    sim.set_state(snapshot).unwrap();
+    sim.advance_to(0.010).unwrap();
+    assert_eq!(sim.state().x, first, "deterministic replay from a snapshot");
+    let mut bad = sim.state().clone();
+    bad.x.pop();
+    assert!(sim.set_state(bad).is_err());
+}
