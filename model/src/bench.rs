@@ -6,7 +6,7 @@
 use crate::actuator::{cavitation_factor, Actuator};
 use crate::effects::Effect;
 use crate::fluid::FluidParams;
-use crate::manifold::{Circuit, ManifoldConfig, Port};
+use crate::manifold::{Circuit, ManifoldConfig, NetworkState, Port};
 use crate::params::{Mode, ParamError, Params};
 use crate::servovalve::reduced::ReducedServovalve;
 use crate::servovalve::{PortPressures, Servovalve};
@@ -250,12 +250,18 @@ impl Bench {
         (atol, scale)
     }
 
-    fn pressure(&self, x: &[f64], port: Port) -> f64 {
-        match port {
-            Port::Chamber(c) => x[P1 + c],
-            Port::Node(k) => x[self.layout.nodes + k],
-            Port::Tank => self.params.tank_pressure,
+    fn network_state<'a>(&self, x: &'a [f64]) -> NetworkState<'a> {
+        let l = &self.layout;
+        NetworkState {
+            nodes: &x[l.nodes..l.passages],
+            flows: &x[l.passages..l.len],
+            chambers: [x[P1], x[P1 + 1]],
+            tank: self.params.tank_pressure,
         }
+    }
+
+    fn pressure(&self, x: &[f64], port: Port) -> f64 {
+        self.network_state(x).pressure(port)
     }
 
     /// Effective bulk modulus at absolute pressure p, with the cavitation clamp.
@@ -291,34 +297,15 @@ impl Bench {
         let act = &self.actuator;
         let u = self.commands(inputs);
         let p = [x[P1], x[P1 + 1]];
-        let nn = self.circuit.nodes.len();
-        let mut q_node = [0.0; 16];
-        let q_node = &mut q_node[..nn];
-        let mut q_ch = [0.0; 2];
-        let add = |port: Port, q: f64, q_node: &mut [f64], q_ch: &mut [f64; 2]| match port {
-            Port::Chamber(c) => q_ch[c] += q,
-            Port::Node(k) => q_node[k] += q,
-            Port::Tank => {}
-        };
         let qv = self.valve_flows(x, u);
-        for (ports, flows) in self.circuit.valve_ports.iter().zip(&qv) {
-            for (port, q) in ports.iter().zip(flows) {
-                add(*port, *q, q_node, &mut q_ch);
-            }
-        }
-        for (k, pass) in self.circuit.passages.iter().enumerate() {
-            let q = x[l.passages + k];
-            add(pass.from, -q, q_node, &mut q_ch);
-            add(pass.to, q, q_node, &mut q_ch);
-            // (3.3) fluid inertia driven by the pressure difference less the losses
-            dx[l.passages + k] =
-                (self.pressure(x, pass.from) - self.pressure(x, pass.to) - pass.pressure_drop(q))
-                    / pass.inertance;
-        }
-        for r in &self.circuit.reducers {
-            q_node[r.node] -= r.flow(x[l.nodes + r.node], self.params.tank_pressure);
-        }
-        let q_in = q_ch;
+        let (dx_rest, dx_flows) = dx.split_at_mut(l.passages);
+        let q_ch = self.circuit.derivatives(
+            &self.network_state(x),
+            &qv,
+            |p| self.bulk_modulus(p),
+            &mut dx_rest[l.nodes..],
+            dx_flows,
+        );
         // (4.1) chamber flow balance: leakages and the piston's displacement flow
         let (q12, qf) = act.leakage(p, self.params.tank_pressure);
         let vol = act.chamber_volumes(x[Y]);
@@ -329,11 +316,6 @@ impl Bench {
         for c in 0..2 {
             dx[P1 + c] = self.bulk_modulus(p[c]) / vol[c] * q_net[c];
         }
-        // (3.2) compressibility of the manifold nodes
-        for k in 0..nn {
-            let pk = x[l.nodes + k];
-            dx[l.nodes + k] = self.bulk_modulus(pk) / self.circuit.nodes[k].volume * q_node[k];
-        }
         // (4.4) motion
         dx[Y] = x[V];
         dx[V] = act.motion(x[Y], x[V], p, inputs.f_ext).acceleration;
@@ -342,7 +324,7 @@ impl Bench {
             let m = valve.n_states();
             valve.derivatives(u[k], &x[o..o + m], &mut dx[o..o + m]);
         }
-        q_in
+        q_ch
     }
 
     /// The outputs at state x.

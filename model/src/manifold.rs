@@ -328,6 +328,74 @@ impl Circuit {
     }
 }
 
+/// Pressures on the manifold's boundary and inside it, for evaluating the network.
+#[derive(Debug, Clone, Copy)]
+pub struct NetworkState<'a> {
+    /// Pressures of the internal nodes (Pa).
+    pub nodes: &'a [f64],
+    /// Flows of the passages, from -> to (m3/s).
+    pub flows: &'a [f64],
+    /// Chamber pressures (Pa).
+    pub chambers: [f64; 2],
+    pub tank: f64,
+}
+
+impl NetworkState<'_> {
+    pub fn pressure(&self, port: Port) -> f64 {
+        match port {
+            Port::Chamber(c) => self.chambers[c],
+            Port::Node(k) => self.nodes[k],
+            Port::Tank => self.tank,
+        }
+    }
+}
+
+/// Largest number of internal nodes of any mode (mode 3: A, B, C, D and N on each side).
+pub const MAX_NODES: usize = 10;
+
+impl Circuit {
+    /// Right-hand side of the network: (3.2) node pressures and (3.3) passage flows, for
+    /// the given valve port flows. `bulk(p)` is the oil's effective bulk modulus. Returns
+    /// the flows delivered into the chambers.
+    pub fn derivatives(
+        &self,
+        s: &NetworkState,
+        port_flows: &[[f64; 2]; 2],
+        bulk: impl Fn(f64) -> f64,
+        d_nodes: &mut [f64],
+        d_flows: &mut [f64],
+    ) -> [f64; 2] {
+        let mut q_node = [0.0; MAX_NODES];
+        let mut q_ch = [0.0; 2];
+        let mut add = |port: Port, q: f64| match port {
+            Port::Chamber(c) => q_ch[c] += q,
+            Port::Node(k) => q_node[k] += q,
+            Port::Tank => {}
+        };
+        for (ports, flows) in self.valve_ports.iter().zip(port_flows) {
+            for (port, q) in ports.iter().zip(flows) {
+                add(*port, *q);
+            }
+        }
+        for (k, pass) in self.passages.iter().enumerate() {
+            let q = s.flows[k];
+            add(pass.from, -q);
+            add(pass.to, q);
+            // (3.3) fluid inertia driven by the pressure difference less the losses
+            d_flows[k] = (s.pressure(pass.from) - s.pressure(pass.to) - pass.pressure_drop(q))
+                / pass.inertance;
+        }
+        for r in &self.reducers {
+            q_node[r.node] -= r.flow(s.nodes[r.node], s.tank);
+        }
+        for (k, node) in self.nodes.iter().enumerate() {
+            // (3.2) compressibility of the node's share of passage volume
+            d_nodes[k] = bulk(s.nodes[k]) / node.volume * q_node[k];
+        }
+        q_ch
+    }
+}
+
 /// The driven valve ports of a mode that push the piston flow into each chamber, with the
 /// share of the chamber flow each carries (mode 2: the two valves split it equally, the
 /// assumption of Table 3.4).
