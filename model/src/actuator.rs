@@ -1,6 +1,9 @@
 //! Double-rod actuator (section 4.1): two compressible chambers and the moving mass.
 
+use crate::effects::Effect;
+use crate::fluid::FluidParams;
 use crate::friction::{dry_friction, viscous_friction, FrictionParams};
+use crate::params::Params;
 use crate::params::GRAVITY;
 
 /// Smallest chamber volume the model accepts, as a fraction of the dead volume. The end
@@ -33,6 +36,22 @@ pub fn cavitation_factor(p: f64) -> f64 {
     s * s * (3.0 - 2.0 * s) // smoothstep: C1 at both ends of the band
 }
 
+/// Effective bulk modulus of the oil at absolute pressure p, with entrained air when
+/// `air` and with the cavitation clamp: the stiffness every volume of the bench uses.
+pub fn oil_stiffness(fluid: &FluidParams, air: bool, p: f64) -> f64 {
+    fluid.effective_bulk_modulus(p, air) * cavitation_factor(p)
+}
+
+/// The fluid as the model uses it: at the reference temperature unless the temperature
+/// effect is on.
+pub fn fluid_in_use(p: &Params) -> FluidParams {
+    let mut fluid = p.fluid;
+    if !p.has(Effect::Temperature) {
+        fluid.temperature = fluid.reference_temperature;
+    }
+    fluid
+}
+
 /// The actuator as the bench assembles it.
 #[derive(Debug, Clone)]
 pub struct Actuator {
@@ -61,6 +80,33 @@ pub struct Motion {
 }
 
 impl Actuator {
+    /// The actuator of a parameter set, with the oil volume and fluid mass the manifold
+    /// merges into it. Laminar leakage scales with 1/mu and the hydrostatic bearings'
+    /// viscous friction with mu (A.14)-(A.16).
+    pub fn from_params(p: &Params, extra_volume: [f64; 2], added_mass: f64) -> Actuator {
+        let on = |e: Effect| p.has(e);
+        let mu_ratio = fluid_in_use(p).viscosity_ratio();
+        let a = &p.actuator;
+        let payload = if on(Effect::Payload) { a.payload_mass } else { 0.0 };
+        let leak = on(Effect::InternalLeakage);
+        Actuator {
+            area: a.area,
+            stroke: a.stroke,
+            dead_volume: a.dead_volume,
+            extra_volume,
+            inertial_mass: a.mass + payload + added_mass,
+            weight_mass: a.mass + payload,
+            internal_leakage: if leak { a.internal_leakage / mu_ratio } else { 0.0 },
+            external_leakage: if leak { a.external_leakage / mu_ratio } else { 0.0 },
+            viscous: if on(Effect::ViscousFriction) {
+                a.viscous_friction * mu_ratio
+            } else {
+                0.0
+            },
+            friction: on(Effect::DryFriction).then_some(p.friction),
+        }
+    }
+
     /// (4.2) chamber volumes, measured from mid stroke: V_i = V_dead + A (stroke/2 +- y).
     pub fn chamber_volumes(&self, y: f64) -> [f64; 2] {
         let half = 0.5 * self.stroke;

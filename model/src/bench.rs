@@ -3,13 +3,12 @@
 //!
 //! State layout: `[y, v, P1, P2 | SV1 states | SV2 states | node pressures | passage flows]`.
 
-use crate::actuator::{cavitation_factor, Actuator};
+use crate::actuator::{fluid_in_use, oil_stiffness, Actuator};
 use crate::effects::Effect;
 use crate::fluid::FluidParams;
-use crate::manifold::{Circuit, ManifoldConfig, NetworkState, Port};
+use crate::manifold::{Circuit, NetworkState, Port};
 use crate::params::{Mode, ParamError, Params};
-use crate::servovalve::reduced::ReducedServovalve;
-use crate::servovalve::{PortPressures, Servovalve};
+use crate::servovalve::{self, PortPressures, Servovalve};
 use crate::solver::{self, SolverError, SolverStats, Tolerances};
 
 /// Inputs held constant over one integration interval.
@@ -78,70 +77,10 @@ impl Bench {
     pub fn new(params: &Params) -> Result<Bench, ParamError> {
         params.validate()?;
         let p = params;
-        let on = |e: Effect| p.has(e);
-        // (A.14)-(A.16): viscosity at the oil temperature, or at the reference when the
-        // temperature effect is off; laminar conductances scale with 1/mu, viscous
-        // friction of the hydrostatic bearings with mu.
-        let mut fluid = p.fluid;
-        if !on(Effect::Temperature) {
-            fluid.temperature = fluid.reference_temperature;
-        }
-        let mu_ratio = fluid.viscosity_ratio();
-        let viscosity =
-            fluid.dynamic_viscosity(fluid.temperature, crate::fluid::ATMOSPHERIC_PRESSURE);
-        let valve = |vp| -> Box<dyn Servovalve> {
-            Box::new(ReducedServovalve::new(
-                vp,
-                on(Effect::ValveDynamics),
-                on(Effect::InternalLeakage),
-                1.0 / mu_ratio,
-            ))
-        };
-        let valves = [valve(&p.sv1), valve(p.sv2_effective())];
-        let circuit = Circuit::new(
-            p.mode,
-            &ManifoldConfig {
-                volume: on(Effect::ManifoldVolume),
-                inertia: on(Effect::ManifoldInertia),
-                losses: on(Effect::ManifoldLosses),
-                volume_scale: p.manifold.volume_scale,
-                inertia_scale: p.manifold.inertia_scale,
-                loss_scale: p.manifold.loss_scale,
-                density: fluid.density,
-                viscosity,
-            },
-        );
-        let a = &p.actuator;
-        let payload = if on(Effect::Payload) {
-            a.payload_mass
-        } else {
-            0.0
-        };
-        let leak = on(Effect::InternalLeakage);
-        let actuator = Actuator {
-            area: a.area,
-            stroke: a.stroke,
-            dead_volume: a.dead_volume,
-            extra_volume: circuit.chamber_volume,
-            inertial_mass: a.mass + payload + circuit.added_mass,
-            weight_mass: a.mass + payload,
-            internal_leakage: if leak {
-                a.internal_leakage / mu_ratio
-            } else {
-                0.0
-            },
-            external_leakage: if leak {
-                a.external_leakage / mu_ratio
-            } else {
-                0.0
-            },
-            viscous: if on(Effect::ViscousFriction) {
-                a.viscous_friction * mu_ratio
-            } else {
-                0.0
-            },
-            friction: on(Effect::DryFriction).then_some(p.friction),
-        };
+        let fluid = fluid_in_use(p);
+        let valves = [servovalve::build(&p.sv1, p), servovalve::build(p.sv2_effective(), p)];
+        let circuit = Circuit::from_params(p);
+        let actuator = Actuator::from_params(p, circuit.chamber_volume, circuit.added_mass);
         let n0 = valves[0].n_states();
         let n1 = valves[1].n_states();
         let sv = [4, 4 + n0];
@@ -158,7 +97,7 @@ impl Bench {
             valves,
             circuit,
             actuator,
-            air: on(Effect::EntrainedAir),
+            air: p.has(Effect::EntrainedAir),
             fluid,
             layout,
         })
@@ -264,9 +203,8 @@ impl Bench {
         self.network_state(x).pressure(port)
     }
 
-    /// Effective bulk modulus at absolute pressure p, with the cavitation clamp.
     fn bulk_modulus(&self, p: f64) -> f64 {
-        self.fluid.effective_bulk_modulus(p, self.air) * cavitation_factor(p)
+        oil_stiffness(&self.fluid, self.air, p)
     }
 
     /// Valve port flows for the state.

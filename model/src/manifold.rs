@@ -227,6 +227,25 @@ fn direct_ports(mode: Mode) -> [[Port; 2]; 2] {
 }
 
 impl Circuit {
+    /// The circuit a parameter set asks for (mode, manifold effects and scales, oil).
+    pub fn from_params(p: &crate::params::Params) -> Circuit {
+        use crate::effects::Effect;
+        let fluid = crate::actuator::fluid_in_use(p);
+        Circuit::new(
+            p.mode,
+            &ManifoldConfig {
+                volume: p.has(Effect::ManifoldVolume),
+                inertia: p.has(Effect::ManifoldInertia),
+                losses: p.has(Effect::ManifoldLosses),
+                volume_scale: p.manifold.volume_scale,
+                inertia_scale: p.manifold.inertia_scale,
+                loss_scale: p.manifold.loss_scale,
+                density: fluid.density,
+                viscosity: fluid.dynamic_viscosity(fluid.temperature, crate::fluid::ATMOSPHERIC_PRESSURE),
+            },
+        )
+    }
+
     /// Build the circuit. With both volume and inertia on, the full C-R-I-C network; with
     /// only one of them, its lumped equivalent (Table 3.3 volume added to each chamber, or
     /// Table 3.4 mass added to the piston), as the thesis does in sections 3.4-3.5.

@@ -38,6 +38,22 @@ pub trait Servovalve: std::fmt::Debug + Send + Sync {
     fn flows(&self, command: f64, x: &[f64], p: &PortPressures) -> PortFlows;
 }
 
+/// The valve model a parameter set asks for, for one valve's parameters `vp`: the
+/// effects `valve_dynamics`, `internal_leakage` and `temperature` of `p` apply.
+pub fn build(vp: &crate::params::ValveParams, p: &crate::params::Params) -> Box<dyn Servovalve> {
+    use crate::effects::Effect;
+    // (A.14)-(A.16): laminar conductances scale with 1/mu
+    let mu_ratio = crate::actuator::fluid_in_use(p).viscosity_ratio();
+    match vp.model {
+        crate::params::ValveModel::Reduced => Box::new(reduced::ReducedServovalve::new(
+            vp,
+            p.has(Effect::ValveDynamics),
+            p.has(Effect::InternalLeakage),
+            1.0 / mu_ratio,
+        )),
+    }
+}
+
 /// Orifice law with a laminar core: sign(dp)*sqrt(|dp|) away from zero, linear within
 /// about `dp_transition` of it, so the flow and its derivative stay finite at dp = 0
 /// (a sharp square root would give the stiff solver an infinite Jacobian at null).
