@@ -87,7 +87,11 @@ impl Actuator {
         let on = |e: Effect| p.has(e);
         let mu_ratio = fluid_in_use(p).viscosity_ratio();
         let a = &p.actuator;
-        let payload = if on(Effect::Payload) { a.payload_mass } else { 0.0 };
+        let payload = if on(Effect::Payload) {
+            a.payload_mass
+        } else {
+            0.0
+        };
         let leak = on(Effect::InternalLeakage);
         Actuator {
             area: a.area,
@@ -96,8 +100,16 @@ impl Actuator {
             extra_volume,
             inertial_mass: a.mass + payload + added_mass,
             weight_mass: a.mass + payload,
-            internal_leakage: if leak { a.internal_leakage / mu_ratio } else { 0.0 },
-            external_leakage: if leak { a.external_leakage / mu_ratio } else { 0.0 },
+            internal_leakage: if leak {
+                a.internal_leakage / mu_ratio
+            } else {
+                0.0
+            },
+            external_leakage: if leak {
+                a.external_leakage / mu_ratio
+            } else {
+                0.0
+            },
             viscous: if on(Effect::ViscousFriction) {
                 a.viscous_friction * mu_ratio
             } else {
@@ -147,6 +159,25 @@ impl Actuator {
             acceleration: (driving - friction) / self.inertial_mass,
             friction,
         }
+    }
+
+    /// (4.1) chamber pressure derivatives for the flows `q_in` delivered into the chambers:
+    /// leakages and the piston's displacement flow, over the chambers' compliance.
+    pub fn pressure_derivatives(
+        &self,
+        y: f64,
+        v: f64,
+        p: [f64; 2],
+        q_in: [f64; 2],
+        p_tank: f64,
+        stiffness: impl Fn(f64) -> f64,
+    ) -> [f64; 2] {
+        let (q12, qf) = self.leakage(p, p_tank);
+        let vol = self.chamber_volumes(y);
+        [
+            stiffness(p[0]) / vol[0] * (q_in[0] - q12 - qf[0] - self.area * v),
+            stiffness(p[1]) / vol[1] * (q_in[1] + q12 - qf[1] + self.area * v),
+        ]
     }
 
     /// (4.1) leakage flows: piston (chamber 1 to 2) and each chamber to the drain.

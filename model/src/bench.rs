@@ -78,7 +78,10 @@ impl Bench {
         params.validate()?;
         let p = params;
         let fluid = fluid_in_use(p);
-        let valves = [servovalve::build(&p.sv1, p), servovalve::build(p.sv2_effective(), p)];
+        let valves = [
+            servovalve::build(&p.sv1, p),
+            servovalve::build(p.sv2_effective(), p),
+        ];
         let circuit = Circuit::from_params(p);
         let actuator = Actuator::from_params(p, circuit.chamber_volume, circuit.added_mass);
         let n0 = valves[0].n_states();
@@ -244,16 +247,10 @@ impl Bench {
             &mut dx_rest[l.nodes..],
             dx_flows,
         );
-        // (4.1) chamber flow balance: leakages and the piston's displacement flow
-        let (q12, qf) = act.leakage(p, self.params.tank_pressure);
-        let vol = act.chamber_volumes(x[Y]);
-        let q_net = [
-            q_ch[0] - q12 - qf[0] - act.area * x[V],
-            q_ch[1] + q12 - qf[1] + act.area * x[V],
-        ];
-        for c in 0..2 {
-            dx[P1 + c] = self.bulk_modulus(p[c]) / vol[c] * q_net[c];
-        }
+        let dp = act.pressure_derivatives(x[Y], x[V], p, q_ch, self.params.tank_pressure, |p| {
+            self.bulk_modulus(p)
+        });
+        dx[P1..P1 + 2].copy_from_slice(&dp);
         // (4.4) motion
         dx[Y] = x[V];
         dx[V] = act.motion(x[Y], x[V], p, inputs.f_ext).acceleration;

@@ -241,7 +241,8 @@ impl Circuit {
                 inertia_scale: p.manifold.inertia_scale,
                 loss_scale: p.manifold.loss_scale,
                 density: fluid.density,
-                viscosity: fluid.dynamic_viscosity(fluid.temperature, crate::fluid::ATMOSPHERIC_PRESSURE),
+                viscosity: fluid
+                    .dynamic_viscosity(fluid.temperature, crate::fluid::ATMOSPHERIC_PRESSURE),
             },
         )
     }

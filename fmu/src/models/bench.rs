@@ -1,0 +1,153 @@
+//! `bench.fmu`: the whole plant (two servovalves, manifold, actuator) in one solver.
+
+use std::path::Path;
+
+use hbmodel::effects::Effect;
+use hbmodel::{Inputs, Outputs, Params, SimState, Simulation};
+use modeldesc::DefaultExperiment;
+
+use super::{effect_switches, load_params, registry_parameters, HasParams};
+use crate::slave::{integer_parameter, real_input, real_output, Model, ModelInfo, VarDef};
+
+pub struct BenchFmu {
+    params: Params,
+    inputs: Inputs,
+    sim: Option<Simulation>,
+    out: Outputs,
+    start_time: f64,
+}
+
+impl HasParams for BenchFmu {
+    fn params(&self) -> &Params {
+        &self.params
+    }
+    fn params_mut(&mut self) -> &mut Params {
+        self.sim = None;
+        &mut self.params
+    }
+}
+
+/// The FMU's built-in parameters: the chapter-4 bench in mode 3.
+pub fn default_params() -> Params {
+    Params::thesis_bench(hbmodel::Mode::ThreeWay)
+}
+
+impl BenchFmu {
+    fn sim(&mut self) -> Result<&mut Simulation, String> {
+        if self.sim.is_none() {
+            let mut sim = Simulation::new(&self.params).map_err(|e| e.to_string())?;
+            let mut state = sim.state().clone();
+            state.t = self.start_time;
+            sim.set_state(state)?;
+            self.sim = Some(sim);
+        }
+        let sim = self.sim.as_mut().ok_or("no simulation")?;
+        sim.set_inputs(self.inputs);
+        Ok(sim)
+    }
+}
+
+impl Model for BenchFmu {
+    type Snapshot = (Params, SimState);
+
+    fn info() -> ModelInfo {
+        ModelInfo {
+            model_name: "HydroBench.Bench",
+            model_identifier: "bench",
+            description: "Electro-hydraulic test bench (Xu 2013): two MOOG D765 servovalves, \
+                          three-mode manifold and double-rod actuator in one stiff solver",
+            default_experiment: DefaultExperiment {
+                start_time: 0.0,
+                stop_time: 0.2,
+                tolerance: Some(1e-6),
+                step_size: Some(1e-3),
+            },
+            enumerations: vec![],
+        }
+    }
+
+    fn variables() -> Vec<VarDef<Self>> {
+        let d = default_params();
+        let mut v = vec![
+            real_input("u1", "Command of servovalve SV1", "V", 0.0, (Some(-10.0), Some(10.0)), |m: &Self| m.inputs.u1, |m, x| m.inputs.u1 = x),
+            real_input("u2", "Command of servovalve SV2 (ignored in mode 1, where SV2 stays at null)", "V", 0.0, (Some(-10.0), Some(10.0)), |m: &Self| m.inputs.u2, |m, x| m.inputs.u2 = x),
+            real_input("F_ext", "External force on the rod, opposing positive y", "N", 0.0, (Some(-1e5), Some(1e5)), |m: &Self| m.inputs.f_ext, |m, x| m.inputs.f_ext = x),
+            real_output("y", "Piston position from mid stroke (positive extends chamber 1)", "m", |m: &Self| m.out.y),
+            real_output("v", "Piston velocity", "m/s", |m: &Self| m.out.v),
+            real_output("a", "Piston acceleration", "m/s2", |m: &Self| m.out.a),
+            real_output("P1", "Pressure in chamber 1 (absolute)", "Pa", |m: &Self| m.out.p1),
+            real_output("P2", "Pressure in chamber 2 (absolute)", "Pa", |m: &Self| m.out.p2),
+            real_output("P_A1", "Pressure at port A of SV1", "Pa", |m: &Self| m.out.p_a1),
+            real_output("P_B1", "Pressure at port B of SV1", "Pa", |m: &Self| m.out.p_b1),
+            real_output("P_A2", "Pressure at port A of SV2", "Pa", |m: &Self| m.out.p_a2),
+            real_output("P_B2", "Pressure at port B of SV2", "Pa", |m: &Self| m.out.p_b2),
+            real_output("Q1", "Flow from the manifold into chamber 1", "m3/s", |m: &Self| m.out.q1),
+            real_output("Q2", "Flow from the manifold into chamber 2", "m3/s", |m: &Self| m.out.q2),
+            real_output("x_s1", "Spool position of SV1", "m", |m: &Self| m.out.x_s1),
+            real_output("x_s2", "Spool position of SV2", "m", |m: &Self| m.out.x_s2),
+            integer_parameter("mode", "Working mode: 1 = SV1 4-way, 2 = both 4-way in parallel, 3 = each 3-way on one chamber", d.mode.number() as i32, 1, 3, |m: &Self| m.params.mode.number() as i32, |m, k| {
+                if let Ok(mode) = hbmodel::Mode::try_from(k as u8) {
+                    m.params_mut().mode = mode;
+                }
+            }),
+        ];
+        v.extend(effect_switches(&Effect::ALL, &d));
+        v.extend(registry_parameters(|_| true, str::to_string));
+        v
+    }
+
+    fn instantiate(resources: Option<&Path>) -> Result<Self, String> {
+        let params = load_params(resources, default_params())?;
+        Ok(BenchFmu {
+            params,
+            inputs: Inputs::default(),
+            sim: None,
+            out: Outputs::default(),
+            start_time: 0.0,
+        })
+    }
+
+    fn initialize(&mut self, start_time: f64) -> Result<(), String> {
+        self.start_time = start_time;
+        self.sim = None;
+        self.refresh()
+    }
+
+    fn refresh(&mut self) -> Result<(), String> {
+        self.out = self.sim()?.outputs();
+        Ok(())
+    }
+
+    fn do_step(&mut self, h: f64) -> Result<(), String> {
+        let sim = self.sim()?;
+        let t = sim.time() + h;
+        sim.advance_to(t).map_err(|e| e.to_string())
+    }
+
+    fn time(&self) -> f64 {
+        self.sim.as_ref().map_or(self.start_time, |s| s.time())
+    }
+
+    fn snapshot(&self) -> Self::Snapshot {
+        let state = match &self.sim {
+            Some(s) => s.state().clone(),
+            None => SimState {
+                t: self.start_time,
+                x: vec![],
+                inputs: self.inputs,
+            },
+        };
+        (self.params.clone(), state)
+    }
+
+    fn restore(&mut self, (params, state): Self::Snapshot) -> Result<(), String> {
+        self.params = params;
+        self.inputs = state.inputs;
+        self.start_time = state.t;
+        self.sim = None;
+        if !state.x.is_empty() {
+            self.sim()?.set_state(state)?;
+        }
+        self.refresh()
+    }
+}

@@ -1,0 +1,152 @@
+//! The five HydroBench FMUs and how an instantiation finds its model.
+
+pub mod actuator;
+pub mod bench;
+pub mod controller;
+pub mod manifold;
+pub mod servovalve;
+
+use std::path::{Path, PathBuf};
+use std::sync::OnceLock;
+
+use hbmodel::effects::{Effect, PARAMS};
+use hbmodel::Params;
+
+use crate::instance::{Component, Instance, Logger};
+use crate::slave::{boolean_parameter, description, real_parameter, Model, VarDef};
+
+/// Every FMU: (model identifier, its description). The GUIDs come from the content.
+pub fn descriptions() -> &'static [(&'static str, modeldesc::ModelDescription, String)] {
+    static ALL: OnceLock<Vec<(&'static str, modeldesc::ModelDescription, String)>> =
+        OnceLock::new();
+    ALL.get_or_init(|| {
+        fn one<M: Model>() -> (&'static str, modeldesc::ModelDescription, String) {
+            let d = description::<M>();
+            let guid = d.guid();
+            (M::info().model_identifier, d, guid)
+        }
+        vec![
+            one::<servovalve::ServovalveFmu>(),
+            one::<manifold::ManifoldFmu>(),
+            one::<actuator::ActuatorFmu>(),
+            one::<bench::BenchFmu>(),
+            one::<controller::ControllerFmu>(),
+        ]
+    })
+}
+
+/// Create the instance of the model whose description has this GUID.
+pub fn instantiate(
+    guid: &str,
+    log: Logger,
+    resources: Option<PathBuf>,
+) -> Result<Box<dyn Component>, (Logger, String)> {
+    let Some((id, _, _)) = descriptions().iter().find(|(_, _, g)| g == guid) else {
+        return Err((log, format!("no HydroBench model has GUID {guid}: the FMU's modelDescription.xml and binary differ in version")));
+    };
+    fn make<M: Model>(
+        log: Logger,
+        resources: Option<PathBuf>,
+    ) -> Result<Box<dyn Component>, (Logger, String)> {
+        Instance::<M>::new(log, resources).map(|i| Box::new(i) as Box<dyn Component>)
+    }
+    match *id {
+        "servovalve" => make::<servovalve::ServovalveFmu>(log, resources),
+        "manifold" => make::<manifold::ManifoldFmu>(log, resources),
+        "actuator" => make::<actuator::ActuatorFmu>(log, resources),
+        "bench" => make::<bench::BenchFmu>(log, resources),
+        _ => make::<controller::ControllerFmu>(log, resources),
+    }
+}
+
+/// The directory behind an `fmuResourceLocation` URI (file:///..., file:/...).
+pub fn resource_dir(uri: &str) -> Option<PathBuf> {
+    let rest = uri
+        .strip_prefix("file://")
+        .or_else(|| uri.strip_prefix("file:"))?;
+    // file:///path and file://localhost/path both name /path
+    let rest = rest.strip_prefix("localhost").unwrap_or(rest);
+    // percent-decoding: hosts escape spaces and non-ASCII characters
+    let mut bytes = Vec::with_capacity(rest.len());
+    let mut it = rest.bytes();
+    while let Some(b) = it.next() {
+        if b == b'%' {
+            let hex = [it.next()?, it.next()?];
+            bytes.push(u8::from_str_radix(std::str::from_utf8(&hex).ok()?, 16).ok()?);
+        } else {
+            bytes.push(b);
+        }
+    }
+    Some(PathBuf::from(String::from_utf8(bytes).ok()?))
+}
+
+/// Name of the optional parameter file in an FMU's resources.
+pub const PARAMETER_FILE: &str = "parameters.toml";
+
+/// Parameters from `resources/parameters.toml` when the FMU ships one, else `default`.
+pub fn load_params(resources: Option<&Path>, default: Params) -> Result<Params, String> {
+    match resources.map(|r| r.join(PARAMETER_FILE)) {
+        Some(file) if file.is_file() => Params::load(&file).map_err(|e| e.to_string()),
+        _ => Ok(default),
+    }
+}
+
+/// Models that hold a bench parameter tree.
+pub trait HasParams {
+    fn params(&self) -> &Params;
+    /// Mutable access; the model rebuilds its simulation before the next use.
+    fn params_mut(&mut self) -> &mut Params;
+}
+
+/// FMU names of the registry paths the issue fixes; the rest keep their dotted path.
+fn fmu_name(path: &str) -> &str {
+    match path {
+        "supply_pressure" => "P_supply",
+        "tank_pressure" => "P_tank",
+        "initial_position" => "y0",
+        "actuator.payload_mass" => "payload_mass",
+        other => other,
+    }
+}
+
+/// Real parameters for the registry entries `keep` accepts, renamed by `rename`.
+pub fn registry_parameters<M: HasParams + 'static>(
+    keep: impl Fn(&str) -> bool,
+    rename: impl Fn(&str) -> String,
+) -> Vec<VarDef<M>> {
+    PARAMS
+        .iter()
+        .filter(|spec| keep(spec.path))
+        .map(|spec| {
+            real_parameter(
+                &rename(fmu_name(spec.path)),
+                spec.description,
+                spec.unit,
+                spec.default_value(),
+                spec.min,
+                spec.max,
+                move |m: &M| spec.get(m.params()),
+                move |m: &mut M, v| spec.set(m.params_mut(), v),
+            )
+        })
+        .collect()
+}
+
+/// `effect.<name>` Boolean switches for the given effects.
+pub fn effect_switches<M: HasParams + 'static>(
+    effects: &[Effect],
+    defaults: &Params,
+) -> Vec<VarDef<M>> {
+    effects
+        .iter()
+        .map(|&e| {
+            boolean_parameter(
+                &format!("effect.{}", e.name()),
+                e.spec().description,
+                defaults.has(e),
+                move |m: &M| m.params().has(e),
+                move |m: &mut M, on| m.params_mut().effects.set(e, on),
+            )
+        })
+        .collect()
+}

@@ -1,0 +1,305 @@
+//! What a model offers the FMI shim: its variables, declared once, and its behaviour.
+//!
+//! A variable's declaration carries both what `modelDescription.xml` says of it and how
+//! the C ABI reads and writes it, so the two cannot drift apart. Value references are
+//! the variables' positions in the list.
+
+use std::path::Path;
+
+use modeldesc::{Causality, DefaultExperiment, Initial, ScalarVariable, VarKind, Variability};
+
+/// A value crossing the ABI.
+#[derive(Debug, Clone, Copy, PartialEq)]
+pub enum Value {
+    Real(f64),
+    Integer(i32),
+    Boolean(bool),
+}
+
+type Get<M> = Box<dyn Fn(&M) -> Value + Send + Sync>;
+type Set<M> = Box<dyn Fn(&mut M, Value) -> Result<(), String> + Send + Sync>;
+
+/// One variable: its declaration and its accessors.
+pub struct VarDef<M> {
+    pub decl: ScalarVariable,
+    pub get: Get<M>,
+    pub set: Option<Set<M>>,
+}
+
+/// Builder helpers: the declarations read like a table.
+impl<M> VarDef<M> {
+    // a declaration is a row of the variable table: one argument per column
+    #[allow(clippy::too_many_arguments)]
+    fn new(
+        name: &str,
+        description: &str,
+        causality: Causality,
+        variability: Variability,
+        initial: Option<Initial>,
+        kind: VarKind,
+        get: Get<M>,
+        set: Option<Set<M>>,
+    ) -> Self {
+        VarDef {
+            decl: ScalarVariable {
+                name: name.to_string(),
+                value_reference: 0,
+                description: description.to_string(),
+                causality,
+                variability,
+                initial,
+                kind,
+            },
+            get,
+            set,
+        }
+    }
+}
+
+fn real_kind(
+    start: Option<f64>,
+    unit: &str,
+    display: Option<&str>,
+    min: Option<f64>,
+    max: Option<f64>,
+) -> VarKind {
+    VarKind::Real {
+        start,
+        min,
+        max,
+        unit: (!unit.is_empty() && unit != "1").then(|| unit.to_string()),
+        display_unit: display.map(str::to_string),
+    }
+}
+
+/// The display unit the project shows for an SI unit.
+pub fn display_unit(unit: &str) -> Option<&'static str> {
+    match unit {
+        "Pa" => Some("bar"),
+        "m3/s" => Some("L/min"),
+        "m" => Some("mm"),
+        _ => None,
+    }
+}
+
+/// A continuous real input with a start value and optional bounds.
+pub fn real_input<M: 'static>(
+    name: &str,
+    description: &str,
+    unit: &str,
+    start: f64,
+    bounds: (Option<f64>, Option<f64>),
+    get: fn(&M) -> f64,
+    set: fn(&mut M, f64),
+) -> VarDef<M> {
+    let (min, max) = bounds;
+    VarDef::new(
+        name,
+        description,
+        Causality::Input,
+        Variability::Continuous,
+        None,
+        real_kind(Some(start), unit, display_unit(unit), min, max),
+        Box::new(move |m| Value::Real(get(m))),
+        Some(Box::new(move |m, v| match v {
+            Value::Real(x) => {
+                if !x.is_finite() {
+                    return Err(format!("input {x} is not a finite number"));
+                }
+                if min.is_some_and(|lo| x < lo) || max.is_some_and(|hi| x > hi) {
+                    return Err(format!("input {x} lies outside [{min:?}, {max:?}]"));
+                }
+                set(m, x);
+                Ok(())
+            }
+            _ => Err("not a Real variable".into()),
+        })),
+    )
+}
+
+/// A continuous real output, calculated by the model.
+pub fn real_output<M: 'static>(
+    name: &str,
+    description: &str,
+    unit: &str,
+    get: fn(&M) -> f64,
+) -> VarDef<M> {
+    VarDef::new(
+        name,
+        description,
+        Causality::Output,
+        Variability::Continuous,
+        Some(Initial::Calculated),
+        real_kind(None, unit, display_unit(unit), None, None),
+        Box::new(move |m| Value::Real(get(m))),
+        None,
+    )
+}
+
+/// A fixed real parameter with physical bounds; setting it out of bounds is refused.
+#[allow(clippy::too_many_arguments)]
+pub fn real_parameter<M: 'static>(
+    name: &str,
+    description: &str,
+    unit: &str,
+    start: f64,
+    min: f64,
+    max: f64,
+    get: impl Fn(&M) -> f64 + Send + Sync + 'static,
+    set: impl Fn(&mut M, f64) + Send + Sync + 'static,
+) -> VarDef<M> {
+    VarDef::new(
+        name,
+        description,
+        Causality::Parameter,
+        Variability::Fixed,
+        Some(Initial::Exact),
+        real_kind(Some(start), unit, display_unit(unit), Some(min), Some(max)),
+        Box::new(move |m| Value::Real(get(m))),
+        Some(Box::new(move |m, v| match v {
+            Value::Real(x) if x.is_finite() && x >= min && x <= max => {
+                set(m, x);
+                Ok(())
+            }
+            Value::Real(x) => Err(format!(
+                "{x} lies outside the physical bounds [{min}, {max}]"
+            )),
+            _ => Err("not a Real variable".into()),
+        })),
+    )
+}
+
+/// A fixed integer parameter within bounds.
+pub fn integer_parameter<M: 'static>(
+    name: &str,
+    description: &str,
+    start: i32,
+    min: i32,
+    max: i32,
+    get: fn(&M) -> i32,
+    set: fn(&mut M, i32),
+) -> VarDef<M> {
+    VarDef::new(
+        name,
+        description,
+        Causality::Parameter,
+        Variability::Fixed,
+        Some(Initial::Exact),
+        VarKind::Integer {
+            start: Some(start),
+            min: Some(min),
+            max: Some(max),
+        },
+        Box::new(move |m| Value::Integer(get(m))),
+        Some(Box::new(move |m, v| match v {
+            Value::Integer(x) if (min..=max).contains(&x) => {
+                set(m, x);
+                Ok(())
+            }
+            Value::Integer(x) => Err(format!("{x} lies outside [{min}, {max}]")),
+            _ => Err("not an Integer variable".into()),
+        })),
+    )
+}
+
+/// A fixed enumeration parameter of a declared type.
+#[allow(clippy::too_many_arguments)]
+pub fn enum_parameter<M: 'static>(
+    name: &str,
+    description: &str,
+    declared_type: &str,
+    start: i32,
+    min: i32,
+    max: i32,
+    get: fn(&M) -> i32,
+    set: fn(&mut M, i32),
+) -> VarDef<M> {
+    let mut v = integer_parameter(name, description, start, min, max, get, set);
+    v.decl.kind = VarKind::Enumeration {
+        declared_type: declared_type.to_string(),
+        start: Some(start),
+        min: Some(min),
+        max: Some(max),
+    };
+    v
+}
+
+/// A fixed Boolean parameter.
+pub fn boolean_parameter<M: 'static>(
+    name: &str,
+    description: &str,
+    start: bool,
+    get: impl Fn(&M) -> bool + Send + Sync + 'static,
+    set: impl Fn(&mut M, bool) + Send + Sync + 'static,
+) -> VarDef<M> {
+    VarDef::new(
+        name,
+        description,
+        Causality::Parameter,
+        Variability::Fixed,
+        Some(Initial::Exact),
+        VarKind::Boolean { start: Some(start) },
+        Box::new(move |m| Value::Boolean(get(m))),
+        Some(Box::new(move |m, v| match v {
+            Value::Boolean(b) => {
+                set(m, b);
+                Ok(())
+            }
+            _ => Err("not a Boolean variable".into()),
+        })),
+    )
+}
+
+/// Static facts about a model.
+pub struct ModelInfo {
+    pub model_name: &'static str,
+    pub model_identifier: &'static str,
+    pub description: &'static str,
+    pub default_experiment: DefaultExperiment,
+    pub enumerations: Vec<modeldesc::EnumerationType>,
+}
+
+/// A model behind the FMI shim. `Snapshot` is the complete state for get/set/serialize.
+pub trait Model: Sized + Send + 'static {
+    type Snapshot: Clone + Send + serde::Serialize + serde::de::DeserializeOwned;
+
+    fn info() -> ModelInfo;
+    fn variables() -> Vec<VarDef<Self>>;
+    /// A new instance with defaults, overridden by `resources/parameters.toml` if present.
+    fn instantiate(resources: Option<&Path>) -> Result<Self, String>;
+    /// Parameters are final: check them and build the simulation.
+    fn initialize(&mut self, start_time: f64) -> Result<(), String>;
+    /// Make outputs consistent with the current state and inputs.
+    fn refresh(&mut self) -> Result<(), String>;
+    /// Advance from the current time by h with the current inputs.
+    fn do_step(&mut self, h: f64) -> Result<(), String>;
+    fn time(&self) -> f64;
+    fn snapshot(&self) -> Self::Snapshot;
+    fn restore(&mut self, s: Self::Snapshot) -> Result<(), String>;
+}
+
+/// The model description of a model, value references assigned by position.
+pub fn description<M: Model>() -> modeldesc::ModelDescription {
+    let info = M::info();
+    let variables = M::variables()
+        .into_iter()
+        .enumerate()
+        .map(|(i, v)| ScalarVariable {
+            value_reference: i as u32,
+            ..v.decl
+        })
+        .collect();
+    modeldesc::ModelDescription {
+        model_name: info.model_name.to_string(),
+        model_identifier: info.model_identifier.to_string(),
+        description: info.description.to_string(),
+        generation_tool: format!("HydroBench {}", env!("CARGO_PKG_VERSION")),
+        log_categories: crate::instance::LOG_CATEGORIES
+            .iter()
+            .map(|(n, d)| (n.to_string(), d.to_string()))
+            .collect(),
+        default_experiment: Some(info.default_experiment),
+        enumerations: info.enumerations,
+        variables,
+    }
+}

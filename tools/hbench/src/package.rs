@@ -1,0 +1,98 @@
+//! `hbench fmu`: zip each model description with the shared library into an FMU.
+
+use std::io::Write;
+use std::path::{Path, PathBuf};
+
+use zip::write::SimpleFileOptions;
+
+/// FMI 2.0 platform folder of this build.
+fn platform() -> &'static str {
+    match (std::env::consts::OS, std::env::consts::ARCH) {
+        ("linux", "x86_64") => "linux64",
+        ("linux", "x86") => "linux32",
+        ("macos", _) => "darwin64",
+        ("windows", "x86_64") => "win64",
+        _ => "linux64",
+    }
+}
+
+fn library_name() -> &'static str {
+    match std::env::consts::OS {
+        "macos" => "libhbfmu.dylib",
+        "windows" => "hbfmu.dll",
+        _ => "libhbfmu.so",
+    }
+}
+
+fn default_library() -> Result<PathBuf, String> {
+    let exe = std::env::current_exe().map_err(|e| format!("cannot locate this program: {e}"))?;
+    let dir = exe.parent().ok_or("this program has no directory")?;
+    Ok(dir.join(library_name()))
+}
+
+pub fn run(
+    out: &Path,
+    lib: Option<PathBuf>,
+    parameters: Option<PathBuf>,
+    force: bool,
+    xml: bool,
+) -> Result<(), String> {
+    let lib = match lib {
+        Some(l) => l,
+        None => default_library()?,
+    };
+    let binary = std::fs::read(&lib).map_err(|e| format!("cannot read the FMI library {}: {e} (build it with `cargo build --release --workspace`)", lib.display()))?;
+    let params = match &parameters {
+        Some(p) => {
+            // refuse a bad file here rather than inside a host
+            hbmodel::Params::load(p).map_err(|e| e.to_string())?;
+            Some(
+                std::fs::read_to_string(p)
+                    .map_err(|e| format!("cannot read {}: {e}", p.display()))?,
+            )
+        }
+        None => None,
+    };
+    std::fs::create_dir_all(out).map_err(|e| format!("cannot create {}: {e}", out.display()))?;
+    let ext = std::path::Path::new(library_name())
+        .extension()
+        .and_then(|e| e.to_str())
+        .unwrap_or("so");
+    for (id, description, _guid) in hbfmu::models::descriptions() {
+        description
+            .check()
+            .map_err(|p| format!("{id}: invalid model description: {}", p.join("; ")))?;
+        let path = out.join(format!("{id}.fmu"));
+        if path.exists() && !force {
+            return Err(format!(
+                "{} exists; pass --force to replace it",
+                path.display()
+            ));
+        }
+        let text = description.to_xml();
+        let mut zip = zip::ZipWriter::new(
+            std::fs::File::create(&path)
+                .map_err(|e| format!("cannot create {}: {e}", path.display()))?,
+        );
+        let opts =
+            SimpleFileOptions::default().compression_method(zip::CompressionMethod::Deflated);
+        let mut add = |name: &str, bytes: &[u8]| -> Result<(), String> {
+            zip.start_file(name, opts).map_err(|e| e.to_string())?;
+            zip.write_all(bytes).map_err(|e| e.to_string())
+        };
+        add("modelDescription.xml", text.as_bytes())?;
+        add(&format!("binaries/{}/{id}.{ext}", platform()), &binary)?;
+        if let Some(p) = &params {
+            add(
+                &format!("resources/{}", hbfmu::models::PARAMETER_FILE),
+                p.as_bytes(),
+            )?;
+        }
+        zip.finish().map_err(|e| e.to_string())?;
+        if xml {
+            std::fs::write(out.join(format!("{id}.xml")), &text).map_err(|e| e.to_string())?;
+        }
+        println!("{}", path.display());
+    }
+    Ok(())
+}
