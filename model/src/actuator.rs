@@ -129,6 +129,14 @@ impl Actuator {
         ]
     }
 
+    /// Chamber pressures at rest between supply and tank: half the supply pressure,
+    /// split so that their difference carries the piston's weight (4.16).
+    pub fn rest_pressures(&self, supply: f64, tank: f64) -> [f64; 2] {
+        let mid = 0.5 * (supply + tank);
+        let hold = self.weight_mass * GRAVITY / self.area;
+        [mid + 0.5 * hold, mid - 0.5 * hold]
+    }
+
     /// Contact force of the end stops (N), zero inside the stroke.
     pub fn end_stop_force(&self, y: f64, v: f64) -> f64 {
         let half = 0.5 * self.stroke;

@@ -136,10 +136,11 @@ impl Bench {
         let p = &self.params;
         let mut x = vec![0.0; self.layout.len];
         let mid = 0.5 * (p.supply_pressure + p.tank_pressure);
-        let hold = self.actuator.weight_mass * crate::params::GRAVITY / self.actuator.area;
         x[Y] = y0;
-        x[P1] = mid + 0.5 * hold;
-        x[P1 + 1] = mid - 0.5 * hold;
+        let rest = self
+            .actuator
+            .rest_pressures(p.supply_pressure, p.tank_pressure);
+        x[P1..P1 + 2].copy_from_slice(&rest);
         let u = self.commands(inputs);
         for (k, valve) in self.valves.iter().enumerate() {
             let o = self.layout.sv[k];

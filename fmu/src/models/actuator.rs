@@ -4,7 +4,6 @@ use std::path::Path;
 
 use hbmodel::actuator::{fluid_in_use, oil_stiffness, Actuator};
 use hbmodel::effects::Effect;
-use hbmodel::params::GRAVITY;
 use hbmodel::solver::{integrate, SolverStats, Tolerances};
 use hbmodel::Params;
 use modeldesc::DefaultExperiment;
@@ -72,9 +71,8 @@ impl ActuatorFmu {
             p.validate().map_err(|e| e.to_string())?;
             let act = Actuator::from_params(p, [0.0; 2], 0.0);
             if self.s.x.len() != 4 {
-                let mid = 0.5 * (p.supply_pressure + p.tank_pressure);
-                let hold = act.weight_mass * GRAVITY / act.area;
-                self.s.x = vec![p.initial_position, 0.0, mid + 0.5 * hold, mid - 0.5 * hold];
+                let [p1, p2] = act.rest_pressures(p.supply_pressure, p.tank_pressure);
+                self.s.x = vec![p.initial_position, 0.0, p1, p2];
             }
             self.act = Some(act);
         }

@@ -1,0 +1,21 @@
+#!/usr/bin/env bash
+# Installs what the build and the tests need beyond the Rust toolchain, idempotently:
+# - libclang (Debian's libclang-dev): the `fmi` crate, our independent FMU importer in
+#   the Rust tests, runs bindgen when it builds;
+# - a Python venv in .venv with fmpy, pytest and lxml (requirements in tools/requirements.txt).
+set -euo pipefail
+cd "$(dirname "$0")/.."
+
+if ! dpkg -s libclang-dev >/dev/null 2>&1; then
+    echo "setup: installing libclang-dev" >&2
+    SUDO=""
+    [ "$(id -u)" -ne 0 ] && SUDO="sudo"
+    $SUDO apt-get update -qq
+    DEBIAN_FRONTEND=noninteractive $SUDO apt-get install -y -qq libclang-dev >/dev/null
+fi
+
+if [ ! -x .venv/bin/python ] || ! .venv/bin/python -c "import fmpy, pytest, lxml" 2>/dev/null; then
+    echo "setup: creating .venv with fmpy and pytest" >&2
+    python3 -m venv .venv
+    .venv/bin/pip install -q --disable-pip-version-check -r tools/requirements.txt
+fi
