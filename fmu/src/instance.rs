@@ -66,11 +66,12 @@ impl Logger {
         }
     }
 
-    /// Report through the host's callback. Errors are always reported; the rest only
-    /// when logging is on and the category enabled.
+    /// Report through the host's callback. Refusals (discard) and errors are always
+    /// reported, so every misuse leaves a message; the rest only when logging is on
+    /// and the category enabled.
     pub fn log(&self, status: Status, category: usize, message: &str) {
         let Some(cb) = self.callback else { return };
-        let forced = status >= Status::Error;
+        let forced = status >= Status::Discard;
         if !forced && (!self.logging_on || !self.categories.get(category).copied().unwrap_or(false))
         {
             return;

@@ -24,6 +24,17 @@ pub struct VarDef<M> {
     pub decl: ScalarVariable,
     pub get: Get<M>,
     pub set: Option<Set<M>>,
+    /// For an output: the inputs it depends on at the same instant (direct
+    /// feedthrough); None means all, as far as the model description says.
+    pub depends_on: Option<&'static [&'static str]>,
+}
+
+impl<M> VarDef<M> {
+    /// Declare an output's direct feedthrough (an empty list: none).
+    pub fn depends_on(mut self, inputs: &'static [&'static str]) -> Self {
+        self.depends_on = Some(inputs);
+        self
+    }
 }
 
 /// Builder helpers: the declarations read like a table.
@@ -52,6 +63,7 @@ impl<M> VarDef<M> {
             },
             get,
             set,
+            depends_on: None,
         }
     }
 }
@@ -106,9 +118,18 @@ pub fn real_input<M: 'static>(
                 if !x.is_finite() {
                     return Err(format!("input {x} is not a finite number"));
                 }
-                if min.is_some_and(|lo| x < lo) || max.is_some_and(|hi| x > hi) {
+                // masters that interpolate a constant input land a rounding step past
+                // a bound (10 V becomes 10.000000000000002): clamp those, refuse the rest
+                let slack = |b: f64| 1e-9 * b.abs().max(1.0);
+                if min.is_some_and(|lo| x < lo - slack(lo))
+                    || max.is_some_and(|hi| x > hi + slack(hi))
+                {
                     return Err(format!("input {x} lies outside [{min:?}, {max:?}]"));
                 }
+                let x = x.clamp(
+                    min.unwrap_or(f64::NEG_INFINITY),
+                    max.unwrap_or(f64::INFINITY),
+                );
                 set(m, x);
                 Ok(())
             }
@@ -281,7 +302,19 @@ pub trait Model: Sized + Send + 'static {
 /// The model description of a model, value references assigned by position.
 pub fn description<M: Model>() -> modeldesc::ModelDescription {
     let info = M::info();
-    let variables = M::variables()
+    let defs = M::variables();
+    let output_dependencies = defs
+        .iter()
+        .filter_map(|v| {
+            v.depends_on.map(|d| {
+                (
+                    v.decl.name.clone(),
+                    d.iter().map(|s| s.to_string()).collect(),
+                )
+            })
+        })
+        .collect();
+    let variables = defs
         .into_iter()
         .enumerate()
         .map(|(i, v)| ScalarVariable {
@@ -301,5 +334,6 @@ pub fn description<M: Model>() -> modeldesc::ModelDescription {
         default_experiment: Some(info.default_experiment),
         enumerations: info.enumerations,
         variables,
+        output_dependencies,
     }
 }

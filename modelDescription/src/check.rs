@@ -68,6 +68,25 @@ pub(crate) fn problems(md: &ModelDescription) -> Vec<String> {
     check_texts(md, &mut p);
     check_enumerations(md, &mut p);
     check_names_and_references(md, &mut p);
+    for (output, inputs) in &md.output_dependencies {
+        let is = |name: &str, c: Causality| {
+            md.variables
+                .iter()
+                .any(|v| v.name == name && v.causality == c)
+        };
+        if !is(output, Causality::Output) {
+            p.push(format!(
+                "dependencies are declared for {output:?}, which is not an output"
+            ));
+        }
+        for i in inputs {
+            if !is(i, Causality::Input) {
+                p.push(format!(
+                    "output {output:?} depends on {i:?}, which is not an input"
+                ));
+            }
+        }
+    }
     let mut independents = 0;
     for v in &md.variables {
         check_variable(md, v, &mut p);

@@ -25,6 +25,7 @@
 //!         ScalarVariable::real_input("dp", 1, "pressure drop", "Pa", 1e5).with_display_unit("bar"),
 //!         ScalarVariable::real_output("q", 2, "flow rate", "m3/s").with_display_unit("L/min"),
 //!     ],
+//!     output_dependencies: [("q".to_string(), vec!["dp".to_string()])].into(),
 //! };
 //! md.check().unwrap();
 //! let xml = md.to_xml();
@@ -470,6 +471,10 @@ pub struct ModelDescription {
     pub enumerations: Vec<EnumerationType>,
     /// In ModelVariables order: index `i` here is ScalarVariable index `i + 1`.
     pub variables: Vec<ScalarVariable>,
+    /// Direct feedthrough: output name -> the inputs it depends on at the same instant
+    /// (an empty list: none). Outputs not listed depend on every known, so their
+    /// `dependencies` attribute is omitted, as FMI 2.0 allows.
+    pub output_dependencies: std::collections::BTreeMap<String, Vec<String>>,
 }
 
 impl ModelDescription {
@@ -501,6 +506,18 @@ impl ModelDescription {
 
     /// 1-based ScalarVariable indices of `ModelStructure/Outputs`: every output, in
     /// ModelVariables order.
+    /// 1-based indices of the inputs an output depends on directly, if declared.
+    pub fn dependency_indices(&self, output: &str) -> Option<Vec<usize>> {
+        let names = self.output_dependencies.get(output)?;
+        let mut idx: Vec<usize> = names
+            .iter()
+            .filter_map(|n| self.variables.iter().position(|v| &v.name == n))
+            .map(|i| i + 1)
+            .collect();
+        idx.sort_unstable();
+        Some(idx)
+    }
+
     pub fn output_indices(&self) -> Vec<usize> {
         self.indices_where(|v| v.causality == Causality::Output)
     }

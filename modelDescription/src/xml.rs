@@ -218,7 +218,12 @@ pub(crate) fn render(md: &ModelDescription, guid: &str) -> String {
     if !outputs.is_empty() {
         out.start(El::new("Outputs"));
         for i in outputs {
-            out.empty(El::new("Unknown").attr("index", &i.to_string()));
+            let mut el = El::new("Unknown").attr("index", &i.to_string());
+            if let Some(deps) = md.dependency_indices(&md.variables[i - 1].name) {
+                let list: Vec<String> = deps.iter().map(|d| d.to_string()).collect();
+                el = el.attr("dependencies", &list.join(" "));
+            }
+            out.empty(el);
         }
         out.end("Outputs");
     }

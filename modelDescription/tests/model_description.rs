@@ -113,6 +113,7 @@ fn sample() -> ModelDescription {
                 },
             ),
         ],
+        output_dependencies: Default::default(),
     }
 }
 

@@ -145,18 +145,22 @@ impl Model for ActuatorFmu {
                 "Pressure in chamber 1 (absolute)",
                 "Pa",
                 |m: &Self| m.out[0],
-            ),
+            )
+            .depends_on(&[]),
             real_output(
                 "P2",
                 "Pressure in chamber 2 (absolute)",
                 "Pa",
                 |m: &Self| m.out[1],
-            ),
+            )
+            .depends_on(&[]),
             real_output("y", "Piston position from mid stroke", "m", |m: &Self| {
                 m.out[2]
-            }),
-            real_output("v", "Piston velocity", "m/s", |m: &Self| m.out[3]),
-            real_output("a", "Piston acceleration", "m/s2", |m: &Self| m.out[4]),
+            })
+            .depends_on(&[]),
+            real_output("v", "Piston velocity", "m/s", |m: &Self| m.out[3]).depends_on(&[]),
+            real_output("a", "Piston acceleration", "m/s2", |m: &Self| m.out[4])
+                .depends_on(&["F_ext"]),
         ];
         v.extend(effect_switches(&EFFECTS, &d));
         v.extend(registry_parameters(

@@ -105,13 +105,15 @@ impl Model for ControllerFmu {
                 "Command of SV1, saturated at +-10 V",
                 "V",
                 |m: &Self| m.out[0],
-            ),
+            )
+            .depends_on(&["y_ref", "y"]),
             real_output(
                 "u2",
                 "Command of SV2, saturated at +-10 V",
                 "V",
                 |m: &Self| m.out[1],
-            ),
+            )
+            .depends_on(&["y_ref", "y"]),
             enum_parameter(
                 "law",
                 "Control law",

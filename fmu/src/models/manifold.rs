@@ -133,12 +133,12 @@ impl Model for ManifoldFmu {
             real_input("Q_B2", "Flow out of port B of SV2", "m3/s", 0.0, (None, None), |m: &Self| m.s.inputs[3], |m, x| m.s.inputs[3] = x),
             real_input("P1", "Pressure in chamber 1", "Pa", mid, (Some(0.0), Some(1e8)), |m: &Self| m.s.inputs[4], |m, x| m.s.inputs[4] = x),
             real_input("P2", "Pressure in chamber 2", "Pa", mid, (Some(0.0), Some(1e8)), |m: &Self| m.s.inputs[5], |m, x| m.s.inputs[5] = x),
-            real_output("P_A1", "Pressure at port A of SV1", "Pa", |m: &Self| m.out[0]),
-            real_output("P_B1", "Pressure at port B of SV1", "Pa", |m: &Self| m.out[1]),
-            real_output("P_A2", "Pressure at port A of SV2", "Pa", |m: &Self| m.out[2]),
-            real_output("P_B2", "Pressure at port B of SV2", "Pa", |m: &Self| m.out[3]),
-            real_output("Q1", "Flow delivered into chamber 1", "m3/s", |m: &Self| m.out[4]),
-            real_output("Q2", "Flow delivered into chamber 2", "m3/s", |m: &Self| m.out[5]),
+            real_output("P_A1", "Pressure at port A of SV1", "Pa", |m: &Self| m.out[0]).depends_on(&["P1", "P2"]),
+            real_output("P_B1", "Pressure at port B of SV1", "Pa", |m: &Self| m.out[1]).depends_on(&["P1", "P2"]),
+            real_output("P_A2", "Pressure at port A of SV2", "Pa", |m: &Self| m.out[2]).depends_on(&["P1", "P2"]),
+            real_output("P_B2", "Pressure at port B of SV2", "Pa", |m: &Self| m.out[3]).depends_on(&["P1", "P2"]),
+            real_output("Q1", "Flow delivered into chamber 1", "m3/s", |m: &Self| m.out[4]).depends_on(&["Q_A1", "Q_B1", "Q_A2", "Q_B2"]),
+            real_output("Q2", "Flow delivered into chamber 2", "m3/s", |m: &Self| m.out[5]).depends_on(&["Q_A1", "Q_B1", "Q_A2", "Q_B2"]),
             integer_parameter("mode", "Working mode: 1 = SV1 4-way, 2 = both 4-way in parallel, 3 = each 3-way on one chamber", d.mode.number() as i32, 1, 3, |m: &Self| m.s.params.mode.number() as i32, |m, k| {
                 if let Ok(mode) = hbmodel::Mode::try_from(k as u8) {
                     m.params_mut().mode = mode;

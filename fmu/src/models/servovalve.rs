@@ -141,7 +141,8 @@ impl Model for ServovalveFmu {
                 "Spool position (positive opens P->A and B->T)",
                 "m",
                 |m: &Self| m.out[2],
-            ),
+            )
+            .depends_on(&["u"]),
         ];
         v.extend(effect_switches(
             &[
