@@ -6,6 +6,7 @@
 //! pointers and the instance's state, and answers misuse with `fmi2Error` or
 //! `fmi2Discard` and a message through the host's logger.
 
+pub mod docs;
 pub mod ffi;
 pub mod instance;
 pub mod models;

@@ -278,6 +278,10 @@ pub struct ModelInfo {
     pub description: &'static str,
     pub default_experiment: DefaultExperiment,
     pub enumerations: Vec<modeldesc::EnumerationType>,
+    /// The thesis equations the model implements, one line each, for the documentation.
+    pub equations: &'static [&'static str],
+    /// The built-in parameter tree, shipped as resources/parameters.toml.
+    pub parameters: Option<hbmodel::Params>,
 }
 
 /// A model behind the FMI shim. `Snapshot` is the complete state for get/set/serialize.

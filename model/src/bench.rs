@@ -258,7 +258,15 @@ impl Bench {
         for (k, valve) in self.valves.iter().enumerate() {
             let o = l.sv[k];
             let m = valve.n_states();
-            valve.derivatives(u[k], &x[o..o + m], &mut dx[o..o + m]);
+            let ports = self.circuit.valve_ports[k];
+            let pp = PortPressures {
+                supply: self.params.supply_pressure,
+                tank: self.params.tank_pressure,
+                a: self.pressure(x, ports[0]),
+                b: self.pressure(x, ports[1]),
+            };
+            // the port pressures reach valves whose dynamics feel them (flow forces)
+            valve.derivatives_at(u[k], &x[o..o + m], &pp, &mut dx[o..o + m]);
         }
         q_ch
     }
@@ -306,6 +314,10 @@ pub struct SimState {
     pub t: f64,
     pub x: Vec<f64>,
     pub inputs: Inputs,
+    /// The integrator's next step size, carried across intervals (part of the state so
+    /// that a restored run replays bit for bit).
+    #[serde(default)]
+    pub step: Option<f64>,
 }
 
 /// A bench with its state: set inputs, advance to a time, read outputs.
@@ -330,7 +342,12 @@ impl Simulation {
                 atol,
             },
             scales,
-            state: SimState { t: 0.0, x, inputs },
+            state: SimState {
+                t: 0.0,
+                x,
+                inputs,
+                step: None,
+            },
             bench,
             stats: SolverStats::default(),
         })
@@ -365,7 +382,8 @@ impl Simulation {
         }
         let mut x = self.state.x.clone();
         let bench = &self.bench;
-        solver::integrate(
+        let mut step = self.state.step;
+        solver::integrate_from(
             |_t, x, dx| {
                 bench.derivatives(x, &inputs, dx);
             },
@@ -375,9 +393,11 @@ impl Simulation {
             &self.tolerances,
             &self.scales,
             &mut self.stats,
+            &mut step,
         )?;
         self.state.x = x;
         self.state.t = t;
+        self.state.step = step;
         Ok(())
     }
 

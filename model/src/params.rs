@@ -123,6 +123,8 @@ pub enum ValveModel {
     /// Static flow law (II.2), optionally with second-order spool dynamics.
     #[default]
     Reduced,
+    /// Physical two-stage model of chapter 2 (torque motor, pilot stage, spool, lands).
+    TwoStage,
 }
 
 /// One MOOG D765 servovalve (reduced model).

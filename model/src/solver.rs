@@ -14,7 +14,10 @@
 
 use std::cell::RefCell;
 
-use diffsol::{NalgebraLU, NalgebraMat, OdeBuilder, OdeSolverMethod, OdeSolverStopReason, Vector};
+use diffsol::{
+    NalgebraLU, NalgebraMat, OdeBuilder, OdeSolverMethod, OdeSolverState, OdeSolverStopReason,
+    Vector,
+};
 
 /// Why an integration failed.
 #[derive(Debug, Clone, PartialEq, thiserror::Error)]
@@ -54,6 +57,28 @@ pub fn integrate<F>(
     tol: &Tolerances,
     scale: &[f64],
     stats: &mut SolverStats,
+) -> Result<(), SolverError>
+where
+    F: Fn(f64, &[f64], &mut [f64]),
+{
+    integrate_from(f, x, t0, t1, tol, scale, stats, &mut None)
+}
+
+/// [`integrate`], starting with the step size `step` when given, and leaving in it the
+/// step size the solver would take next. A run of short intervals (communication steps)
+/// then keeps its step size from one interval to the next instead of restarting from
+/// diffsol's cold-start estimate each time, which on the bench costs tens of tiny steps
+/// per millisecond.
+#[allow(clippy::too_many_arguments)]
+pub fn integrate_from<F>(
+    f: F,
+    x: &mut [f64],
+    t0: f64,
+    t1: f64,
+    tol: &Tolerances,
+    scale: &[f64],
+    stats: &mut SolverStats,
+    step: &mut Option<f64>,
 ) -> Result<(), SolverError>
 where
     F: Fn(f64, &[f64], &mut [f64]),
@@ -112,21 +137,31 @@ where
             t: t0,
             message: e.to_string(),
         })?;
-    let mut solver = problem
-        .bdf::<NalgebraLU<f64>>()
-        .map_err(|e| SolverError::Failed {
-            t: t0,
-            message: e.to_string(),
-        })?;
+    let fail = |e: diffsol::error::DiffsolError| SolverError::Failed {
+        t: t0,
+        message: e.to_string(),
+    };
+    let mut state = problem.bdf_state::<NalgebraLU<f64>>().map_err(fail)?;
+    if let Some(h) = *step {
+        if h.is_finite() && h > 0.0 {
+            *state.as_mut().h = h;
+        }
+    }
+    let mut solver = problem.bdf_solver::<NalgebraLU<f64>>(state).map_err(fail)?;
     solver.set_stop_time(t1).map_err(|e| SolverError::Failed {
         t: t0,
         message: e.to_string(),
     })?;
+    // the step the solver chose freely last: the one that lands on t1 is cut to fit
+    let mut free_step = None;
     loop {
         let t_now = solver.state().t;
         match solver.step() {
             Ok(OdeSolverStopReason::TstopReached) => break,
-            Ok(_) => stats.steps += 1,
+            Ok(_) => {
+                stats.steps += 1;
+                free_step = Some(solver.state().h.abs());
+            }
             Err(e) => {
                 return Err(SolverError::Failed {
                     t: t_now,
@@ -136,6 +171,7 @@ where
         }
     }
     stats.steps += 1;
+    *step = free_step.or(*step).or(Some(solver.state().h.abs()));
     let y = solver.state().y.clone_as_vec();
     x.copy_from_slice(&y);
     stats.rhs_evaluations += *calls.borrow();

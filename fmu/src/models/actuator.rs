@@ -9,7 +9,7 @@ use hbmodel::Params;
 use modeldesc::DefaultExperiment;
 use serde::{Deserialize, Serialize};
 
-use super::{effect_switches, load_params, registry_parameters, HasParams};
+use super::{effect_switches, load_params, params_with, registry_parameters, HasParams};
 use crate::slave::{real_input, real_output, Model, ModelInfo, VarDef};
 
 /// The effects that concern the actuator alone.
@@ -41,15 +41,11 @@ pub struct ActuatorFmu {
 
 /// Built-in parameters: the chapter-4 actuator (leakage, friction) without payload.
 pub fn default_params() -> Params {
-    let mut p = Params::default();
-    for e in [
+    params_with(&[
         Effect::InternalLeakage,
         Effect::DryFriction,
         Effect::ViscousFriction,
-    ] {
-        p.effects.set(e, true);
-    }
-    p
+    ])
 }
 
 impl HasParams for ActuatorFmu {
@@ -107,6 +103,12 @@ impl Model for ActuatorFmu {
             description: "Double-rod actuator with hydrostatic bearings: chamber flows and external force in, pressures and motion out",
             default_experiment: DefaultExperiment { start_time: 0.0, stop_time: 0.1, tolerance: Some(1e-6), step_size: Some(1e-4) },
             enumerations: vec![],
+            equations: &[
+                "(4.1)-(4.2) chamber flow balances with leakage",
+                "(4.4) piston motion with gravity, friction (4.5)-(4.13) and end stops",
+                "(A.7)-(A.12) effective bulk modulus",
+            ],
+            parameters: Some(default_params()),
         }
     }
 

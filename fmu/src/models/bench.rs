@@ -63,6 +63,14 @@ impl Model for BenchFmu {
                 step_size: Some(1e-3),
             },
             enumerations: vec![],
+            equations: &[
+                "(II.2) servovalve land flows; second-order spool with rate limit (valve_dynamics)",
+                "(3.1)-(3.7) manifold passages C-R-I-C with abacus-based losses; (3.4) solenoid valves",
+                "(4.1)-(4.2) chamber flow balances with internal and external leakage",
+                "(4.4) piston motion with gravity, friction (4.5)-(4.13) and end stops",
+                "(A.7)-(A.12) effective bulk modulus; (A.15)-(A.16) viscosity",
+            ],
+            parameters: Some(default_params()),
         }
     }
 
@@ -135,6 +143,7 @@ impl Model for BenchFmu {
                 t: self.start_time,
                 x: vec![],
                 inputs: self.inputs,
+                step: None,
             },
         };
         (self.params.clone(), state)

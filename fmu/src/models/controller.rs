@@ -50,6 +50,8 @@ impl Model for ControllerFmu {
                     description: "u1 = -u2 = Kp (y_ref - y), (4.22)".into(),
                 }],
             }],
+            equations: &["(4.22) u1 = -u2 = Kp (y_ref - y), saturated at +-10 V"],
+            parameters: None,
         }
     }
 

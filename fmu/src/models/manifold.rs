@@ -16,7 +16,7 @@ use hbmodel::Params;
 use modeldesc::DefaultExperiment;
 use serde::{Deserialize, Serialize};
 
-use super::{effect_switches, load_params, registry_parameters, HasParams};
+use super::{effect_switches, load_params, params_with, registry_parameters, HasParams};
 use crate::slave::{integer_parameter, real_input, real_output, Model, ModelInfo, VarDef};
 
 const EFFECTS: [Effect; 5] = [
@@ -46,15 +46,11 @@ pub struct ManifoldFmu {
 
 /// Built-in parameters: the chapter-3 network (volumes, inertia, losses) in mode 3.
 pub fn default_params() -> Params {
-    let mut p = Params::default();
-    for e in [
+    params_with(&[
         Effect::ManifoldVolume,
         Effect::ManifoldInertia,
         Effect::ManifoldLosses,
-    ] {
-        p.effects.set(e, true);
-    }
-    p
+    ])
 }
 
 impl HasParams for ManifoldFmu {
@@ -120,6 +116,11 @@ impl Model for ManifoldFmu {
             description: "Three-mode manifold between the two servovalves and the actuator (C-R-I-C passages, chapter 3)",
             default_experiment: DefaultExperiment { start_time: 0.0, stop_time: 0.05, tolerance: Some(1e-6), step_size: Some(1e-4) },
             enumerations: vec![],
+            equations: &[
+                "(3.2) passage end volumes, (3.3) passage inertia",
+                "(3.5)-(3.7) abacus-based pressure drop, (3.4) solenoid valves, flow reducers",
+            ],
+            parameters: Some(default_params()),
         }
     }
 

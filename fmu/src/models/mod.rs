@@ -15,15 +15,32 @@ use hbmodel::Params;
 use crate::instance::{Component, Instance, Logger};
 use crate::slave::{boolean_parameter, description, real_parameter, Model, VarDef};
 
-/// Every FMU: (model identifier, its description). The GUIDs come from the content.
-pub fn descriptions() -> &'static [(&'static str, modeldesc::ModelDescription, String)] {
-    static ALL: OnceLock<Vec<(&'static str, modeldesc::ModelDescription, String)>> =
-        OnceLock::new();
+/// What packaging and instantiation need of one FMU.
+pub struct FmuSpec {
+    pub id: &'static str,
+    pub description: modeldesc::ModelDescription,
+    /// Derived from the description's content.
+    pub guid: String,
+    /// `resources/parameters.toml`: the built-in parameter tree, if the model has one.
+    pub parameters: Option<String>,
+    /// `documentation/index.html`.
+    pub documentation: String,
+}
+
+/// Every FMU of the library.
+pub fn specs() -> &'static [FmuSpec] {
+    static ALL: OnceLock<Vec<FmuSpec>> = OnceLock::new();
     ALL.get_or_init(|| {
-        fn one<M: Model>() -> (&'static str, modeldesc::ModelDescription, String) {
+        fn one<M: Model>() -> FmuSpec {
             let d = description::<M>();
-            let guid = d.guid();
-            (M::info().model_identifier, d, guid)
+            let info = M::info();
+            FmuSpec {
+                id: info.model_identifier,
+                guid: d.guid(),
+                parameters: info.parameters.map(|p| p.to_toml()),
+                documentation: crate::docs::index_html(&d, info.equations),
+                description: d,
+            }
         }
         vec![
             one::<servovalve::ServovalveFmu>(),
@@ -41,7 +58,7 @@ pub fn instantiate(
     log: Logger,
     resources: Option<PathBuf>,
 ) -> Result<Box<dyn Component>, (Logger, String)> {
-    let Some((id, _, _)) = descriptions().iter().find(|(_, _, g)| g == guid) else {
+    let Some(FmuSpec { id, .. }) = specs().iter().find(|s| s.guid == guid) else {
         return Err((log, format!("no HydroBench model has GUID {guid}: the FMU's modelDescription.xml and binary differ in version")));
     };
     fn make<M: Model>(
@@ -89,6 +106,15 @@ pub fn load_params(resources: Option<&Path>, default: Params) -> Result<Params, 
         Some(file) if file.is_file() => Params::load(&file).map_err(|e| e.to_string()),
         _ => Ok(default),
     }
+}
+
+/// The default parameter tree with exactly these effects on.
+pub fn params_with(effects: &[Effect]) -> Params {
+    let mut p = Params::default();
+    for e in effects {
+        p.effects.set(*e, true);
+    }
+    p
 }
 
 /// Models that hold a bench parameter tree.

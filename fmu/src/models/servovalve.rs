@@ -9,7 +9,7 @@ use hbmodel::Params;
 use modeldesc::DefaultExperiment;
 use serde::{Deserialize, Serialize};
 
-use super::{effect_switches, load_params, registry_parameters, HasParams};
+use super::{effect_switches, load_params, params_with, registry_parameters, HasParams};
 use crate::slave::{real_input, real_output, Model, ModelInfo, VarDef};
 
 #[derive(Debug, Clone, Copy, Default, Serialize, Deserialize)]
@@ -37,10 +37,7 @@ pub struct Snapshot {
 
 /// Built-in parameters: the thesis valve with its second-order spool and null leakage.
 pub fn default_params() -> Params {
-    let mut p = Params::default();
-    p.effects.set(Effect::ValveDynamics, true);
-    p.effects.set(Effect::InternalLeakage, true);
-    p
+    params_with(&[Effect::ValveDynamics, Effect::InternalLeakage])
 }
 
 impl HasParams for ServovalveFmu {
@@ -83,6 +80,11 @@ impl Model for ServovalveFmu {
             description: "MOOG D765 servovalve: command and port pressures in, port flows and spool position out",
             default_experiment: DefaultExperiment { start_time: 0.0, stop_time: 0.05, tolerance: Some(1e-6), step_size: Some(1e-4) },
             enumerations: vec![],
+            equations: &[
+                "(II.2) land flow Qn/un * u * sqrt(dp/(dPn/2)) on the four lands",
+                "null leakage of the lands, second-order spool with a rate limit",
+            ],
+            parameters: Some(default_params()),
         }
     }
 
@@ -206,8 +208,9 @@ impl Model for ServovalveFmu {
                 atol,
             };
             let mut x = self.x.clone();
+            let ports = self.ports();
             integrate(
-                |_t, x, dx| v.derivatives(u, x, dx),
+                |_t, x, dx| v.derivatives_at(u, x, &ports, dx),
                 &mut x,
                 self.t,
                 self.t + h,

@@ -5,6 +5,7 @@
 //! dynamics own a slice of the bench state vector; static models own none.
 
 pub mod reduced;
+pub mod two_stage;
 
 /// Absolute pressures at the four ports (Pa).
 #[derive(Debug, Clone, Copy, PartialEq)]
@@ -32,6 +33,13 @@ pub trait Servovalve: std::fmt::Debug + Send + Sync {
     fn absolute_tolerances(&self, atol: &mut [f64]);
     /// Time derivative of the owned states.
     fn derivatives(&self, command: f64, x: &[f64], dx: &mut [f64]);
+    /// Time derivative of the owned states when the port pressures are known, for models
+    /// whose dynamics feel them (pilot stage fed from P, flow forces on the spool). The
+    /// default ignores them.
+    fn derivatives_at(&self, command: f64, x: &[f64], p: &PortPressures, dx: &mut [f64]) {
+        let _ = p;
+        self.derivatives(command, x, dx)
+    }
     /// Spool position (m), positive opening P->A and B->T.
     fn spool_position(&self, command: f64, x: &[f64]) -> f64;
     /// Port flows for the current spool state and port pressures.
@@ -51,6 +59,9 @@ pub fn build(vp: &crate::params::ValveParams, p: &crate::params::Params) -> Box<
             p.has(Effect::InternalLeakage),
             1.0 / mu_ratio,
         )),
+        // always with its spool dynamics and its land leakage, which is part of the
+        // identified flow model (2.26)-(2.31): see two_stage.rs
+        crate::params::ValveModel::TwoStage => Box::new(two_stage::TwoStageServovalve::new(vp, p)),
     }
 }
 

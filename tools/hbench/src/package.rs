@@ -30,6 +30,38 @@ fn default_library() -> Result<PathBuf, String> {
     Ok(dir.join(library_name()))
 }
 
+/// Build the FMI library in release mode from the workspace this program was built in,
+/// and return where cargo put it.
+fn build_library() -> Result<PathBuf, String> {
+    let workspace = Path::new(env!("CARGO_MANIFEST_DIR")).join("../..");
+    let manifest = workspace.join("Cargo.toml");
+    if !manifest.is_file() {
+        // an installed hbench without its sources: use the library shipped beside it
+        return default_library();
+    }
+    eprintln!("hbench: building the FMI library (cargo build --release -p hydrobench-fmu)");
+    let cargo = std::env::var("CARGO").unwrap_or_else(|_| "cargo".into());
+    let status = std::process::Command::new(cargo)
+        .args([
+            "build",
+            "--release",
+            "-q",
+            "-p",
+            "hydrobench-fmu",
+            "--manifest-path",
+        ])
+        .arg(&manifest)
+        .status()
+        .map_err(|e| format!("cannot run cargo: {e}"))?;
+    if !status.success() {
+        return Err("building the FMI library failed".into());
+    }
+    let target = std::env::var_os("CARGO_TARGET_DIR")
+        .map(PathBuf::from)
+        .unwrap_or_else(|| workspace.join("target"));
+    Ok(target.join("release").join(library_name()))
+}
+
 pub fn run(
     out: &Path,
     lib: Option<PathBuf>,
@@ -39,10 +71,11 @@ pub fn run(
 ) -> Result<(), String> {
     let lib = match lib {
         Some(l) => l,
-        None => default_library()?,
+        None => build_library()?,
     };
-    let binary = std::fs::read(&lib).map_err(|e| format!("cannot read the FMI library {}: {e} (build it with `cargo build --release --workspace`)", lib.display()))?;
-    let params = match &parameters {
+    let binary = std::fs::read(&lib)
+        .map_err(|e| format!("cannot read the FMI library {}: {e}", lib.display()))?;
+    let user_params = match &parameters {
         Some(p) => {
             // refuse a bad file here rather than inside a host
             hbmodel::Params::load(p).map_err(|e| e.to_string())?;
@@ -54,11 +87,12 @@ pub fn run(
         None => None,
     };
     std::fs::create_dir_all(out).map_err(|e| format!("cannot create {}: {e}", out.display()))?;
-    let ext = std::path::Path::new(library_name())
+    let ext = Path::new(library_name())
         .extension()
         .and_then(|e| e.to_str())
         .unwrap_or("so");
-    for (id, description, _guid) in hbfmu::models::descriptions() {
+    for spec in hbfmu::models::specs() {
+        let (id, description) = (spec.id, &spec.description);
         description
             .check()
             .map_err(|p| format!("{id}: invalid model description: {}", p.join("; ")))?;
@@ -70,10 +104,9 @@ pub fn run(
             ));
         }
         let text = description.to_xml();
-        let mut zip = zip::ZipWriter::new(
-            std::fs::File::create(&path)
-                .map_err(|e| format!("cannot create {}: {e}", path.display()))?,
-        );
+        let file = std::fs::File::create(&path)
+            .map_err(|e| format!("cannot create {}: {e}", path.display()))?;
+        let mut zip = zip::ZipWriter::new(file);
         let opts =
             SimpleFileOptions::default().compression_method(zip::CompressionMethod::Deflated);
         let mut add = |name: &str, bytes: &[u8]| -> Result<(), String> {
@@ -82,11 +115,11 @@ pub fn run(
         };
         add("modelDescription.xml", text.as_bytes())?;
         add(&format!("binaries/{}/{id}.{ext}", platform()), &binary)?;
-        if let Some(p) = &params {
-            add(
-                &format!("resources/{}", hbfmu::models::PARAMETER_FILE),
-                p.as_bytes(),
-            )?;
+        add("documentation/index.html", spec.documentation.as_bytes())?;
+        // the user's parameter file replaces the built-in one
+        if let Some(p) = user_params.as_ref().or(spec.parameters.as_ref()) {
+            let name = format!("resources/{}", hbfmu::models::PARAMETER_FILE);
+            add(&name, p.as_bytes())?;
         }
         zip.finish().map_err(|e| e.to_string())?;
         if xml {
