@@ -4,6 +4,7 @@
 use hbmodel::control::{
     response_time_95, run_closed_loop, sine_amplitude_ratio, Proportional, SAMPLE_PERIOD,
 };
+use hbmodel::params::ValveModel;
 use hbmodel::{Effect, Mode, Params, Simulation};
 use std::fmt::Write;
 
@@ -91,14 +92,28 @@ fn main() -> std::io::Result<()> {
         .map(|k| 10.0 * 1.07f64.powi(k))
         .filter(|f| *f < 460.0)
         .collect();
-    let mut csv = String::from("frequency_hz,ratio_with_manifold,ratio_without_manifold\n");
-    let (mut a, mut b) = (Vec::new(), Vec::new());
+    // the same bench with the two-stage valve model of chapter 2 (issue 3)
+    let mut two_stage = with.clone();
+    two_stage.sv1.model = ValveModel::TwoStage;
+    two_stage.sv2.model = ValveModel::TwoStage;
+    let mut csv = String::from(
+        "frequency_hz,ratio_with_manifold,ratio_without_manifold,ratio_two_stage_valve\n",
+    );
+    let (mut a, mut b, mut c) = (Vec::new(), Vec::new(), Vec::new());
     for f in &freqs {
-        let (ra, rb) = (ratio(&with, *f), ratio(&without, *f));
-        let _ = writeln!(csv, "{f:.3},{ra:.6},{rb:.6}");
+        let (ra, rb, rc) = (ratio(&with, *f), ratio(&without, *f), ratio(&two_stage, *f));
+        let _ = writeln!(csv, "{f:.3},{ra:.6},{rb:.6},{rc:.6}");
         a.push((*f, ra));
         b.push((*f, rb));
+        c.push((*f, rc));
     }
+    let part = c
+        .iter()
+        .zip(&a)
+        .find(|(x, y)| (x.1 / y.1 - 1.0).abs() > 0.1)
+        .map(|(x, _)| x.0)
+        .unwrap_or(f64::NAN);
+    println!("two-stage and reduced valves part by more than 10 % from {part:.0} Hz");
     let peak = |c: &[(f64, f64)]| {
         c.iter()
             .filter(|p| p.0 > 60.0)
@@ -110,7 +125,8 @@ fn main() -> std::io::Result<()> {
     println!("mode 1 closed-loop resonance peak: {pa:.0} Hz with the manifold, {pb:.0} Hz without");
     let _ = write!(
         summary,
-        "  \"sweep_peak_hz\": {{\"with_manifold\": {pa:.1}, \"without_manifold\": {pb:.1}}}\n}}\n"
+        "  \"sweep_peak_hz\": {{\"with_manifold\": {pa:.1}, \"without_manifold\": {pb:.1}, \"two_stage_valve\": {:.1}}},\n  \"two_stage_parts_from_hz\": {part:.1}\n}}\n",
+        peak(&c)
     );
     std::fs::write(out.join("sweep_mode1.csv"), csv)?;
     std::fs::write(
@@ -118,6 +134,7 @@ fn main() -> std::io::Result<()> {
         svg(&[
             ("with manifold", "#c0392b", a),
             ("without manifold", "#2c3e50", b),
+            ("with manifold, two-stage valves", "#27ae60", c),
         ]),
     )?;
     std::fs::write(out.join("summary.json"), summary)?;

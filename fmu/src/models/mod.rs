@@ -10,6 +10,7 @@ use std::path::{Path, PathBuf};
 use std::sync::OnceLock;
 
 use hbmodel::effects::{Effect, PARAMS};
+use hbmodel::params::ValveModel;
 use hbmodel::Params;
 
 use crate::instance::{Component, Instance, Logger};
@@ -105,6 +106,45 @@ pub fn load_params(resources: Option<&Path>, default: Params) -> Result<Params, 
     match resources.map(|r| r.join(PARAMETER_FILE)) {
         Some(file) if file.is_file() => Params::load(&file).map_err(|e| e.to_string()),
         _ => Ok(default),
+    }
+}
+
+/// Name of the enumeration type that selects a servovalve model.
+pub const VALVE_MODEL_TYPE: &str = "HydroBench.ValveModel";
+
+/// The servovalve models a valve parameter can select, as an FMI enumeration.
+pub fn valve_model_type() -> modeldesc::EnumerationType {
+    let item = |name: &str, value, description: &str| modeldesc::EnumItem {
+        name: name.into(),
+        value,
+        description: description.into(),
+    };
+    modeldesc::EnumerationType {
+        name: VALVE_MODEL_TYPE.into(),
+        description: "Servovalve model".into(),
+        items: vec![
+            item(
+                "reduced",
+                1,
+                "Static flow law (II.2), optional second-order spool",
+            ),
+            item("two_stage", 2, "Physical two-stage model of chapter 2"),
+        ],
+    }
+}
+
+pub fn valve_model_code(m: ValveModel) -> i32 {
+    match m {
+        ValveModel::Reduced => 1,
+        ValveModel::TwoStage => 2,
+    }
+}
+
+pub fn valve_model_from(code: i32) -> ValveModel {
+    if code == 2 {
+        ValveModel::TwoStage
+    } else {
+        ValveModel::Reduced
     }
 }
 

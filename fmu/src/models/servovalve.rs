@@ -9,8 +9,11 @@ use hbmodel::Params;
 use modeldesc::DefaultExperiment;
 use serde::{Deserialize, Serialize};
 
-use super::{effect_switches, load_params, params_with, registry_parameters, HasParams};
-use crate::slave::{real_input, real_output, Model, ModelInfo, VarDef};
+use super::{
+    effect_switches, load_params, params_with, registry_parameters, valve_model_code,
+    valve_model_from, valve_model_type, HasParams, VALVE_MODEL_TYPE,
+};
+use crate::slave::{enum_parameter, real_input, real_output, Model, ModelInfo, VarDef};
 
 #[derive(Debug, Clone, Copy, Default, Serialize, Deserialize)]
 pub struct ValveInputs {
@@ -79,7 +82,7 @@ impl Model for ServovalveFmu {
             model_identifier: "servovalve",
             description: "MOOG D765 servovalve: command and port pressures in, port flows and spool position out",
             default_experiment: DefaultExperiment { start_time: 0.0, stop_time: 0.05, tolerance: Some(1e-6), step_size: Some(1e-4) },
-            enumerations: vec![],
+            enumerations: vec![valve_model_type()],
             equations: &[
                 "(II.2) land flow Qn/un * u * sqrt(dp/(dPn/2)) on the four lands",
                 "null leakage of the lands, second-order spool with a rate limit",
@@ -146,6 +149,16 @@ impl Model for ServovalveFmu {
             )
             .depends_on(&["u"]),
         ];
+        v.push(enum_parameter(
+            "model",
+            "Servovalve model",
+            VALVE_MODEL_TYPE,
+            1,
+            1,
+            2,
+            |m: &Self| valve_model_code(m.params.sv1.model),
+            |m, k| m.params_mut().sv1.model = valve_model_from(k),
+        ));
         v.extend(effect_switches(
             &[
                 Effect::ValveDynamics,
