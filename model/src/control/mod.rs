@@ -5,6 +5,14 @@
 //! it was `sensors.delay` seconds before each sample. The thesis's other laws (issue 5)
 //! implement the same [`Controller`] trait.
 
+pub mod backstepping;
+pub mod config;
+pub mod dao2;
+pub mod law;
+pub mod model_free;
+pub mod sampled;
+pub mod trajectory;
+
 use crate::bench::{Inputs, Outputs, Simulation};
 use crate::effects::Effect;
 use crate::solver::SolverError;
@@ -42,6 +50,36 @@ impl Controller for Proportional {
     }
 }
 
+impl law::Law for Proportional {
+    fn commands(
+        &mut self,
+        _t: f64,
+        r: &law::Reference,
+        x: &law::Estimate,
+        _period: f64,
+    ) -> [f64; 2] {
+        let u = self.kp * (r.y[0] - x.y);
+        [u, -u]
+    }
+}
+
+/// Run a sampled law on `sim` following `trajectory` up to `t_end`.
+pub fn run_sampled(
+    sim: &mut Simulation,
+    controller: &mut sampled::SampledController,
+    trajectory: &dyn Fn(f64) -> law::Reference,
+    t_end: f64,
+    timing: &Timing,
+) -> Result<Vec<Sample>, SolverError> {
+    run_loop(
+        sim,
+        &mut |t, sensed, exact| controller.sample(t, &trajectory(t), sensed, exact),
+        &|t| trajectory(t).y[0],
+        t_end,
+        timing,
+    )
+}
+
 /// One recorded instant of a closed-loop run.
 #[derive(Debug, Clone, Copy, PartialEq)]
 pub struct Sample {
@@ -61,12 +99,50 @@ pub fn run_closed_loop(
     period: f64,
     substeps: usize,
 ) -> Result<Vec<Sample>, SolverError> {
+    let timing = Timing {
+        period,
+        substeps,
+        computation_delay: 0.0,
+    };
+    run_loop(
+        sim,
+        &mut |t, m, _exact| controller.update(t, reference(t), m),
+        reference,
+        t_end,
+        &timing,
+    )
+}
+
+/// When a sampled controller reads and acts.
+#[derive(Debug, Clone, Copy, PartialEq)]
+pub struct Timing {
+    /// Sampling period (s).
+    pub period: f64,
+    /// Recorded points per period.
+    pub substeps: usize,
+    /// Time between a sample and the command it produces reaching the valves (s), less
+    /// than a period: the board's computation time.
+    pub computation_delay: f64,
+}
+
+/// The sampled loop: at each sample `decide(t, sensed, exact)` gives the commands from
+/// the sensed measurement (delayed when `sensor_delay` is on) or the exact outputs; they
+/// reach the valves `computation_delay` later and are held until the next ones.
+pub fn run_loop(
+    sim: &mut Simulation,
+    decide: &mut dyn FnMut(f64, &Measurement, &Outputs) -> [f64; 2],
+    reference: &dyn Fn(f64) -> f64,
+    t_end: f64,
+    timing: &Timing,
+) -> Result<Vec<Sample>, SolverError> {
+    let period = timing.period;
     let params = sim.bench().params();
     let delay = if params.has(Effect::SensorDelay) {
         params.sensors.delay
     } else {
         0.0
     };
+    let compute = timing.computation_delay.clamp(0.0, period);
     let mut trace = Vec::new();
     // measurement history (time, value) for the delayed sensor
     let mut history: Vec<(f64, Measurement)> = Vec::new();
@@ -79,17 +155,12 @@ pub fn run_closed_loop(
     let n = ((t_end - sim.time()) / period).round() as usize;
     let t0 = sim.time();
     let f_ext = sim.inputs().f_ext;
+    let mut applied = [sim.inputs().u1, sim.inputs().u2];
     for k in 0..n {
         let t_k = t0 + k as f64 * period;
         let m = delayed(&history, t_k - delay);
-        let yd = reference(t_k);
-        let u = controller.update(t_k, yd, &m);
-        sim.set_inputs(Inputs {
-            u1: u[0],
-            u2: u[1],
-            f_ext,
-        });
-        let substeps = substeps.max(1);
+        let u = decide(t_k, &m, &sim.outputs());
+        let substeps = timing.substeps.max(1);
         let mut points: Vec<f64> = (1..=substeps)
             .map(|j| t_k + period * j as f64 / substeps as f64)
             .collect();
@@ -100,10 +171,24 @@ pub fn run_closed_loop(
                 points.push(t_read);
             }
         }
+        let t_act = t_k + compute;
+        if compute > 0.0 && t_act < t_k + period {
+            points.push(t_act);
+        } else {
+            applied = u;
+        }
         points.sort_by(f64::total_cmp);
         points.dedup_by(|a, b| (*a - *b).abs() < 1e-9 * period);
         for t in points {
+            sim.set_inputs(Inputs {
+                u1: applied[0],
+                u2: applied[1],
+                f_ext,
+            });
             sim.advance_to(t)?;
+            if (t - t_act).abs() < 1e-9 * period {
+                applied = u;
+            }
             let out = sim.outputs();
             history.push((t, measure(&out)));
             trace.push(Sample {
