@@ -2,6 +2,7 @@
 
 mod bench;
 mod package;
+mod tables;
 
 use std::path::PathBuf;
 use std::process::ExitCode;
@@ -40,6 +41,14 @@ enum Command {
         #[arg(long)]
         xml: bool,
     },
+    /// Regenerate the thesis's control result tables (Tables 5.1, 6.1, 7.1, 7.2 form) by
+    /// simulating every law on the full bench, the thesis's values side by side; writes
+    /// tables.md and tables.json into DIR.
+    Tables {
+        /// Directory for tables.md and tables.json
+        #[arg(long, default_value = "docs")]
+        out: PathBuf,
+    },
     /// Measure the speed of the bench model: simulated seconds per CPU second for the
     /// bench in mode 3 under proportional control following +-10 mm moves, static and
     /// second-order servovalve, rtol 1e-6, and the deviation from an rtol 1e-9 run.
@@ -64,6 +73,7 @@ fn main() -> ExitCode {
             xml,
         } => package::run(&out, lib, parameters, force, xml),
         Command::Bench { seconds, json } => bench::main(seconds, json),
+        Command::Tables { out } => tables::main(&out),
     };
     match result {
         Ok(()) => ExitCode::SUCCESS,
