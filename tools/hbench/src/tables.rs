@@ -100,6 +100,9 @@ fn run(cp: &ControllerParams, mass: f64, payload: f64) -> Result<Errors, String>
     })
 }
 
+/// (table, label, controller, moving mass kg, payload kg, thesis max/STD/mean/STD um)
+type Case<'a> = (&'a str, &'a str, ControllerParams, f64, f64, [f64; 4]);
+
 fn law(kind: LawKind, c: [f64; 4], kp: f64) -> ControllerParams {
     ControllerParams {
         law: kind,
@@ -118,7 +121,7 @@ second-order valves, friction, leakage, 0.5 ms sensor delay), 7th-order moves be
 moves, static = the holds. Regenerate with `hbench tables`.\n\n",
     );
     let mut json = Vec::new();
-    let cases: Vec<(&str, &str, ControllerParams, f64, f64, [f64; 4])> = vec![
+    let cases: Vec<Case> = vec![
         (
             "5.1",
             "Y-lambda (LG)",
