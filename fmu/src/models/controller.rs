@@ -1,11 +1,19 @@
-//! `controller.fmu`: the bench's position controller, u1 = -u2 = Kp (y_ref - y).
+//! `controller.fmu`: the bench's position/pressure controllers (chapters 4-6).
 //!
-//! The master's communication step is the controller's sampling period: outputs are
-//! computed from the inputs of the current communication point and held over the step.
+//! The master's communication step is the controller's sampling period: at each
+//! communication point the law samples its inputs once and its commands are held over
+//! the step. The model-based laws need velocity and acceleration: a DAO2 differentiator
+//! estimates them from `y` (as on the bench), and a second one gives the reference's
+//! derivatives from `y_ref`.
 
 use std::path::Path;
 
-use hbmodel::control::{Controller, Measurement, Proportional};
+use hbmodel::control::config::{ControllerParams, LawKind};
+use hbmodel::control::dao2::Dao2;
+use hbmodel::control::law::Reference;
+use hbmodel::control::sampled::{SampledController, StateSource};
+use hbmodel::control::Measurement;
+use hbmodel::{Outputs, Params};
 use modeldesc::{DefaultExperiment, EnumItem, EnumerationType};
 use serde::{Deserialize, Serialize};
 
@@ -13,17 +21,75 @@ use crate::slave::{
     enum_parameter, real_input, real_output, real_parameter, Model, ModelInfo, VarDef,
 };
 
-/// Section 4.4's proportional gain (V/m).
-pub const THESIS_KP: f64 = 1169.0;
+/// Name of the enumeration type of the control laws.
+const LAW_TYPE: &str = "HydroBench.ControlLaw";
 
-#[derive(Debug, Clone, Copy, Serialize, Deserialize)]
+/// Laws in the order of their enumeration values (1-based).
+const LAWS: [(LawKind, &str, &str); 5] = [
+    (
+        LawKind::Proportional,
+        "proportional",
+        "u1 = -u2 = Kp (y_ref - y), (4.22)",
+    ),
+    (
+        LawKind::YLambda,
+        "y_lambda",
+        "Backstepping Y-lambda, (5.16)-(5.35)",
+    ),
+    (
+        LawKind::PY,
+        "p_y",
+        "Backstepping P-Y, (5.36)-(5.58); P_ref is P1d",
+    ),
+    (
+        LawKind::ModelFree,
+        "model_free",
+        "Model-free i-PI, (6.6)-(6.9)",
+    ),
+    (
+        LawKind::RestrictedModel,
+        "restricted_model",
+        "Control with restricted model, (6.10)-(6.17)",
+    ),
+];
+
+fn law_code(k: LawKind) -> i32 {
+    LAWS.iter()
+        .position(|(l, _, _)| *l == k)
+        .map_or(1, |i| i as i32 + 1)
+}
+
+fn law_from(code: i32) -> LawKind {
+    LAWS.get((code - 1).max(0) as usize)
+        .map_or(LawKind::Proportional, |l| l.0)
+}
+
+#[derive(Debug, Clone, Serialize, Deserialize)]
 pub struct ControllerFmu {
-    law: i32,
-    kp: f64,
+    cp: ControllerParams,
     /// y_ref, y, P1, P2, P_ref
     inputs: [f64; 5],
     out: [f64; 2],
     t: f64,
+    controller: Option<SampledController>,
+    reference: Dao2,
+    /// The sample taken at the current time: its inputs and the memories before it, so
+    /// that inputs set again at the same instant (Jacobi masters) replace it cleanly.
+    sample: Option<(f64, [f64; 5], Option<SampledController>, Dao2)>,
+}
+
+impl ControllerFmu {
+    fn fresh(cp: ControllerParams) -> Self {
+        ControllerFmu {
+            reference: Dao2::new(cp.dao2[0], cp.dao2[1], cp.period),
+            cp,
+            inputs: [0.0, 0.0, 1e7, 1e7, 80e5],
+            out: [0.0; 2],
+            t: 0.0,
+            controller: None,
+            sample: None,
+        }
+    }
 }
 
 impl Model for ControllerFmu {
@@ -33,29 +99,37 @@ impl Model for ControllerFmu {
         ModelInfo {
             model_name: "HydroBench.Controller",
             model_identifier: "controller",
-            description:
-                "Position/pressure controller of the bench (proportional control of section 4.4)",
-            default_experiment: DefaultExperiment {
-                start_time: 0.0,
-                stop_time: 0.1,
-                tolerance: None,
-                step_size: Some(1e-3),
-            },
+            description: "Position/pressure controllers of the bench (chapters 4-6), sampled at the communication step",
+            default_experiment: DefaultExperiment { start_time: 0.0, stop_time: 0.1, tolerance: None, step_size: Some(1e-3) },
             enumerations: vec![EnumerationType {
-                name: "HydroBench.ControlLaw".into(),
+                name: LAW_TYPE.into(),
                 description: "Control law".into(),
-                items: vec![EnumItem {
-                    name: "proportional".into(),
-                    value: 1,
-                    description: "u1 = -u2 = Kp (y_ref - y), (4.22)".into(),
-                }],
+                items: LAWS.iter().enumerate().map(|(i, (_, name, d))| EnumItem { name: (*name).into(), value: i as i32 + 1, description: (*d).into() }).collect(),
             }],
-            equations: &["(4.22) u1 = -u2 = Kp (y_ref - y), saturated at +-10 V"],
+            equations: &[
+                "(4.22) proportional; (5.16)-(5.35) Y-lambda; (5.36)-(5.58) P-Y",
+                "(6.6)-(6.9) model-free i-PI; (6.10)-(6.17) restricted model",
+                "(5.59)-(5.63) DAO2 differentiator for the velocity and acceleration",
+                "commands saturated at +-10 V",
+            ],
             parameters: None,
         }
     }
 
     fn variables() -> Vec<VarDef<Self>> {
+        let d = ControllerParams::default();
+        let gain = |name: &'static str, k: usize| {
+            real_parameter(
+                name,
+                "Backstepping gain",
+                "1/s",
+                d.c[k],
+                0.0,
+                1e5,
+                move |m: &Self| m.cp.c[k],
+                move |m: &mut Self, x| m.cp.c[k] = x,
+            )
+        };
         vec![
             real_input(
                 "y_ref",
@@ -95,7 +169,7 @@ impl Model for ControllerFmu {
             ),
             real_input(
                 "P_ref",
-                "Pressure reference (used by the pressure laws)",
+                "Pressure reference: P0 of Y-lambda, P1d of P-Y",
                 "Pa",
                 80e5,
                 (None, None),
@@ -107,60 +181,126 @@ impl Model for ControllerFmu {
                 "Command of SV1, saturated at +-10 V",
                 "V",
                 |m: &Self| m.out[0],
-            )
-            .depends_on(&["y_ref", "y"]),
+            ),
             real_output(
                 "u2",
                 "Command of SV2, saturated at +-10 V",
                 "V",
                 |m: &Self| m.out[1],
-            )
-            .depends_on(&["y_ref", "y"]),
+            ),
             enum_parameter(
                 "law",
                 "Control law",
-                "HydroBench.ControlLaw",
+                LAW_TYPE,
                 1,
                 1,
-                1,
-                |m: &Self| m.law,
-                |m, k| m.law = k,
+                LAWS.len() as i32,
+                |m: &Self| law_code(m.cp.law),
+                |m, k| m.cp.law = law_from(k),
             ),
             real_parameter(
                 "Kp",
-                "Proportional gain",
+                "Proportional gain of (4.22)",
                 "V/m",
-                THESIS_KP,
+                d.kp,
                 0.0,
                 1e6,
-                |m: &Self| m.kp,
-                |m: &mut Self, x| m.kp = x,
+                |m: &Self| m.cp.kp,
+                |m: &mut Self, x| m.cp.kp = x,
+            ),
+            gain("c1", 0),
+            gain("c2", 1),
+            gain("c3", 2),
+            gain("c4", 3),
+            real_parameter(
+                "lambda",
+                "Weight of the Y-lambda pressure combination",
+                "",
+                d.lambda,
+                0.0,
+                1.0,
+                |m: &Self| m.cp.lambda,
+                |m: &mut Self, x| m.cp.lambda = x,
+            ),
+            real_parameter(
+                "Kp_model_free",
+                "Proportional gain of the model-free and restricted-model laws",
+                "V/m",
+                d.kp_model_free,
+                0.0,
+                1e5,
+                |m: &Self| m.cp.kp_model_free,
+                |m: &mut Self, x| m.cp.kp_model_free = x,
+            ),
+            real_parameter(
+                "Kd0",
+                "DAO2 gain Kd0",
+                "1/s",
+                d.dao2[0],
+                1.0,
+                1e5,
+                |m: &Self| m.cp.dao2[0],
+                |m: &mut Self, x| m.cp.dao2[0] = x,
+            ),
+            real_parameter(
+                "Kd1",
+                "DAO2 gain Kd1",
+                "1/s",
+                d.dao2[1],
+                1.0,
+                1e5,
+                |m: &Self| m.cp.dao2[1],
+                |m: &mut Self, x| m.cp.dao2[1] = x,
             ),
         ]
     }
 
     fn instantiate(_resources: Option<&Path>) -> Result<Self, String> {
-        Ok(ControllerFmu {
-            law: 1,
-            kp: THESIS_KP,
-            inputs: [0.0, 0.0, 1e7, 1e7, 80e5],
-            out: [0.0; 2],
-            t: 0.0,
-        })
+        Ok(Self::fresh(ControllerParams::default()))
     }
 
     fn initialize(&mut self, start_time: f64) -> Result<(), String> {
+        let inputs = self.inputs;
+        // parameters are final: build the law on the thesis bench's control model
+        let mut cp = self.cp;
+        cp.source = StateSource::Dao2;
+        *self = Self::fresh(cp);
+        self.inputs = inputs;
+        self.reference.reset(inputs[0]);
         self.t = start_time;
+        self.controller = Some(cp.controller(&Params::default()));
         self.refresh()
     }
 
     fn refresh(&mut self) -> Result<(), String> {
-        let m = Measurement {
-            y: self.inputs[1],
-            p1: self.inputs[2],
-            p2: self.inputs[3],
+        if let Some((t, used, ctrl, reference)) = &self.sample {
+            if *t == self.t && *used == self.inputs {
+                return Ok(());
+            }
+            if *t == self.t {
+                // inputs changed at the same instant: undo that sample
+                self.controller = ctrl.clone();
+                self.reference = reference.clone();
+            }
+        }
+        self.sample = Some((
+            self.t,
+            self.inputs,
+            self.controller.clone(),
+            self.reference.clone(),
+        ));
+        let [y_ref, y, p1, p2, p_ref] = self.inputs;
+        let [_, vd, ad] = self.reference.update(y_ref);
+        let reference = Reference {
+            y: [y_ref, vd, ad, 0.0],
+            p: [p_ref, 0.0],
         };
-        self.out = Proportional { kp: self.kp }.update(self.t, self.inputs[0], &m);
+        let sensed = Measurement { y, p1, p2 };
+        let ctrl = self
+            .controller
+            .as_mut()
+            .ok_or("the controller is not initialized")?;
+        self.out = ctrl.sample(self.t, &reference, &sensed, &Outputs::default());
         Ok(())
     }
 
@@ -174,7 +314,7 @@ impl Model for ControllerFmu {
     }
 
     fn snapshot(&self) -> Self {
-        *self
+        self.clone()
     }
 
     fn restore(&mut self, s: Self) -> Result<(), String> {

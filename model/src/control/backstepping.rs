@@ -50,7 +50,7 @@ pub const LAMBDA_THESIS: f64 = 0.5;
 pub use super::law::MIN_LAND_DROP;
 
 /// The four backstepping gains c1..c4 (1/s).
-#[derive(Debug, Clone, Copy, PartialEq)]
+#[derive(Debug, Clone, Copy, PartialEq, serde::Serialize, serde::Deserialize)]
 pub struct Gains {
     pub c1: f64,
     pub c2: f64,
@@ -97,7 +97,7 @@ struct Step {
 }
 
 /// Backstepping Y-lambda law, (5.16)-(5.35).
-#[derive(Debug, Clone, Copy, PartialEq)]
+#[derive(Debug, Clone, Copy, PartialEq, serde::Serialize, serde::Deserialize)]
 pub struct YLambda {
     pub model: ControlModel,
     pub gains: Gains,
@@ -168,7 +168,7 @@ impl Law for YLambda {
 }
 
 /// Backstepping P-Y law, (5.36)-(5.58).
-#[derive(Debug, Clone, Copy, PartialEq)]
+#[derive(Debug, Clone, Copy, PartialEq, serde::Serialize, serde::Deserialize)]
 pub struct PY {
     pub model: ControlModel,
     pub gains: Gains,

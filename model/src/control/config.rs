@@ -4,7 +4,7 @@
 use serde::{Deserialize, Serialize};
 
 use super::backstepping::{Gains, YLambda, PY};
-use super::law::{ControlModel, Law};
+use super::law::{ControlModel, Estimate, Law, Reference};
 use super::model_free::{ModelFree, RestrictedModel};
 use super::sampled::{SampledController, StateSource, DAO2_GAINS};
 use super::{Proportional, SAMPLE_PERIOD};
@@ -97,17 +97,49 @@ impl ControlModel {
     }
 }
 
+/// Any law of the thesis, as a plain value: cloned and serialized with the controller
+/// state for the FMUs' get/set/serialize state.
+#[derive(Debug, Clone, PartialEq, Serialize, Deserialize)]
+pub enum AnyLaw {
+    Proportional(Proportional),
+    YLambda(YLambda),
+    PY(PY),
+    ModelFree(ModelFree),
+    RestrictedModel(RestrictedModel),
+}
+
+impl AnyLaw {
+    fn inner(&mut self) -> &mut dyn Law {
+        match self {
+            AnyLaw::Proportional(l) => l,
+            AnyLaw::YLambda(l) => l,
+            AnyLaw::PY(l) => l,
+            AnyLaw::ModelFree(l) => l,
+            AnyLaw::RestrictedModel(l) => l,
+        }
+    }
+}
+
+impl Law for AnyLaw {
+    fn commands(&mut self, t: f64, r: &Reference, x: &Estimate, period: f64) -> [f64; 2] {
+        self.inner().commands(t, r, x, period)
+    }
+    fn reset(&mut self) {
+        self.inner().reset()
+    }
+}
+
 impl ControllerParams {
-    pub fn law(&self, model: ControlModel) -> Box<dyn Law> {
+    pub fn law(&self, model: ControlModel) -> AnyLaw {
         let [c1, c2, c3, c4] = self.c;
         let gains = Gains { c1, c2, c3, c4 };
         match self.law {
-            LawKind::Proportional => Box::new(Proportional { kp: self.kp }),
-            LawKind::YLambda => Box::new(YLambda::new(model, gains, self.lambda)),
-            LawKind::PY => Box::new(PY::new(model, gains)),
-            LawKind::ModelFree => Box::new(ModelFree::thesis(self.kp_model_free)),
+            LawKind::Proportional => AnyLaw::Proportional(Proportional { kp: self.kp }),
+            LawKind::YLambda => AnyLaw::YLambda(YLambda::new(model, gains, self.lambda)),
+            LawKind::PY => AnyLaw::PY(PY::new(model, gains)),
+            LawKind::ModelFree => AnyLaw::ModelFree(ModelFree::thesis(self.kp_model_free)),
             LawKind::RestrictedModel => {
-                Box::new(RestrictedModel::thesis(model, self.kp_model_free))
+                AnyLaw::RestrictedModel(RestrictedModel::thesis(model, self.kp_model_free))
             }
         }
     }

@@ -62,7 +62,7 @@ fn sig_pow(x: f64, p: f64) -> f64 {
 }
 
 /// Discrete-time DAO2 called once per sample.
-#[derive(Debug, Clone, PartialEq)]
+#[derive(Debug, Clone, PartialEq, serde::Serialize, serde::Deserialize)]
 pub struct Dao2 {
     kd0: f64,
     kd1: f64,

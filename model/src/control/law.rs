@@ -26,7 +26,7 @@ pub struct Estimate {
 }
 
 /// Physical data the model-based laws use: the control model (II.1)-(II.2).
-#[derive(Debug, Clone, Copy, PartialEq)]
+#[derive(Debug, Clone, Copy, PartialEq, serde::Serialize, serde::Deserialize)]
 pub struct ControlModel {
     pub area: f64,
     /// Moving mass including payload as the controller believes it (kg).

@@ -38,7 +38,7 @@ pub trait Controller {
 }
 
 /// Proportional position control u1 = -u2 = Kp (yd - y) (section 4.4), saturated.
-#[derive(Debug, Clone, Copy, PartialEq)]
+#[derive(Debug, Clone, Copy, PartialEq, serde::Serialize, serde::Deserialize)]
 pub struct Proportional {
     pub kp: f64,
 }

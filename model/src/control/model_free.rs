@@ -48,7 +48,7 @@ fn applied(u: f64) -> f64 {
 }
 
 /// Model-free control, the i-PI (6.6)-(6.9).
-#[derive(Debug, Clone, PartialEq)]
+#[derive(Debug, Clone, PartialEq, serde::Serialize, serde::Deserialize)]
 pub struct ModelFree {
     pub alpha: f64,
     pub kp: f64,
@@ -119,7 +119,7 @@ pub fn nominal_command(m: &ControlModel, r: &Reference, x: &Estimate) -> f64 {
 }
 
 /// Control with restricted model (6.10)-(6.17).
-#[derive(Debug, Clone, PartialEq)]
+#[derive(Debug, Clone, PartialEq, serde::Serialize, serde::Deserialize)]
 pub struct RestrictedModel {
     pub model: ControlModel,
     pub alpha: f64,

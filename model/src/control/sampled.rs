@@ -1,6 +1,7 @@
 //! A law as it runs on the bench's board: sampled, fed by the DAO2 differentiator or by
 //! the exact states, delayed by its computation, saturated at the valves' rated input.
 
+use super::config::AnyLaw;
 use super::dao2::Dao2;
 use super::law::{Estimate, Law, Reference};
 use super::{Measurement, COMMAND_LIMIT};
@@ -19,8 +20,9 @@ pub enum StateSource {
     Exact,
 }
 
+#[derive(Debug, Clone, PartialEq, serde::Serialize, serde::Deserialize)]
 pub struct SampledController {
-    law: Box<dyn Law>,
+    law: AnyLaw,
     source: StateSource,
     dao2: Dao2,
     period: f64,
@@ -28,7 +30,7 @@ pub struct SampledController {
 }
 
 impl SampledController {
-    pub fn new(law: Box<dyn Law>, source: StateSource, dao2_gains: [f64; 2], period: f64) -> Self {
+    pub fn new(law: AnyLaw, source: StateSource, dao2_gains: [f64; 2], period: f64) -> Self {
         SampledController {
             law,
             source,
@@ -53,8 +55,9 @@ impl SampledController {
         }
         let estimated = self.dao2.update(sensed.y);
         let x = match self.source {
+            // the law uses the sample itself; DAO2 gives only what is not measured
             StateSource::Dao2 => Estimate {
-                y: estimated[0],
+                y: sensed.y,
                 v: estimated[1],
                 a: estimated[2],
                 p1: sensed.p1,
