@@ -271,6 +271,22 @@ pub fn boolean_parameter<M: 'static>(
     )
 }
 
+/// The same variable seen through a containing model `B` that holds an `A`.
+pub fn project<A: 'static, B: 'static>(
+    v: VarDef<A>,
+    inner: fn(&B) -> &A,
+    inner_mut: fn(&mut B) -> &mut A,
+) -> VarDef<B> {
+    let get = v.get;
+    let set = v.set;
+    VarDef {
+        decl: v.decl,
+        get: Box::new(move |b: &B| get(inner(b))),
+        set: set.map(|s| -> Set<B> { Box::new(move |b: &mut B, x| s(inner_mut(b), x)) }),
+        depends_on: v.depends_on,
+    }
+}
+
 /// Static facts about a model.
 pub struct ModelInfo {
     pub model_name: &'static str,

@@ -16,9 +16,9 @@ use crate::slave::{
 
 pub struct BenchFmu {
     params: Params,
-    inputs: Inputs,
+    pub(crate) inputs: Inputs,
     sim: Option<Simulation>,
-    out: Outputs,
+    pub(crate) out: Outputs,
     start_time: f64,
 }
 

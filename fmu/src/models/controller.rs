@@ -68,8 +68,8 @@ fn law_from(code: i32) -> LawKind {
 pub struct ControllerFmu {
     cp: ControllerParams,
     /// y_ref, y, P1, P2, P_ref
-    inputs: [f64; 5],
-    out: [f64; 2],
+    pub(crate) inputs: [f64; 5],
+    pub(crate) out: [f64; 2],
     t: f64,
     controller: Option<SampledController>,
     reference: Dao2,

@@ -2,6 +2,7 @@
 
 pub mod actuator;
 pub mod bench;
+pub mod closed_loop;
 pub mod controller;
 pub mod manifold;
 pub mod servovalve;
@@ -49,6 +50,7 @@ pub fn specs() -> &'static [FmuSpec] {
             one::<actuator::ActuatorFmu>(),
             one::<bench::BenchFmu>(),
             one::<controller::ControllerFmu>(),
+            one::<closed_loop::ClosedLoopFmu>(),
         ]
     })
 }
@@ -73,6 +75,7 @@ pub fn instantiate(
         "manifold" => make::<manifold::ManifoldFmu>(log, resources),
         "actuator" => make::<actuator::ActuatorFmu>(log, resources),
         "bench" => make::<bench::BenchFmu>(log, resources),
+        "bench_closed_loop" => make::<closed_loop::ClosedLoopFmu>(log, resources),
         _ => make::<controller::ControllerFmu>(log, resources),
     }
 }
