@@ -6,7 +6,7 @@
 
 use std::path::Path;
 
-use modeldesc::{Causality, DefaultExperiment, Initial, ScalarVariable, VarKind, Variability};
+use modeldesc::{DefaultExperiment, Initial, ScalarVariable, VarKind};
 
 /// A value crossing the ABI.
 #[derive(Debug, Clone, Copy, PartialEq)]
@@ -37,30 +37,11 @@ impl<M> VarDef<M> {
     }
 }
 
-/// Builder helpers: the declarations read like a table.
 impl<M> VarDef<M> {
-    // a declaration is a row of the variable table: one argument per column
-    #[allow(clippy::too_many_arguments)]
-    fn new(
-        name: &str,
-        description: &str,
-        causality: Causality,
-        variability: Variability,
-        initial: Option<Initial>,
-        kind: VarKind,
-        get: Get<M>,
-        set: Option<Set<M>>,
-    ) -> Self {
+    /// A declaration (value reference assigned later, by position) with its accessors.
+    fn new(decl: ScalarVariable, get: Get<M>, set: Option<Set<M>>) -> Self {
         VarDef {
-            decl: ScalarVariable {
-                name: name.to_string(),
-                value_reference: 0,
-                description: description.to_string(),
-                causality,
-                variability,
-                initial,
-                kind,
-            },
+            decl,
             get,
             set,
             depends_on: None,
@@ -68,19 +49,20 @@ impl<M> VarDef<M> {
     }
 }
 
-fn real_kind(
-    start: Option<f64>,
-    unit: &str,
-    display: Option<&str>,
-    min: Option<f64>,
-    max: Option<f64>,
-) -> VarKind {
-    VarKind::Real {
-        start,
-        min,
-        max,
-        unit: (!unit.is_empty() && unit != "1").then(|| unit.to_string()),
-        display_unit: display.map(str::to_string),
+/// The registry writes dimensionless units as "1"; model descriptions leave them out.
+fn si_unit(unit: &str) -> &str {
+    if unit == "1" {
+        ""
+    } else {
+        unit
+    }
+}
+
+/// Add the project's display unit for an SI unit, if it has one.
+fn displayed(decl: ScalarVariable, unit: &str) -> ScalarVariable {
+    match display_unit(unit) {
+        Some(d) => decl.with_display_unit(d),
+        None => decl,
     }
 }
 
@@ -105,13 +87,18 @@ pub fn real_input<M: 'static>(
     set: fn(&mut M, f64),
 ) -> VarDef<M> {
     let (min, max) = bounds;
+    let mut decl = displayed(
+        ScalarVariable::real_input(name, 0, description, si_unit(unit), start),
+        unit,
+    );
+    if let VarKind::Real {
+        min: lo, max: hi, ..
+    } = &mut decl.kind
+    {
+        (*lo, *hi) = (min, max);
+    }
     VarDef::new(
-        name,
-        description,
-        Causality::Input,
-        Variability::Continuous,
-        None,
-        real_kind(Some(start), unit, display_unit(unit), min, max),
+        decl,
         Box::new(move |m| Value::Real(get(m))),
         Some(Box::new(move |m, v| match v {
             Value::Real(x) => {
@@ -145,13 +132,9 @@ pub fn real_output<M: 'static>(
     unit: &str,
     get: fn(&M) -> f64,
 ) -> VarDef<M> {
+    let decl = ScalarVariable::real_output(name, 0, description, si_unit(unit));
     VarDef::new(
-        name,
-        description,
-        Causality::Output,
-        Variability::Continuous,
-        Some(Initial::Calculated),
-        real_kind(None, unit, display_unit(unit), None, None),
+        displayed(decl, unit).with_initial(Initial::Calculated),
         Box::new(move |m| Value::Real(get(m))),
         None,
     )
@@ -169,13 +152,11 @@ pub fn real_parameter<M: 'static>(
     get: impl Fn(&M) -> f64 + Send + Sync + 'static,
     set: impl Fn(&mut M, f64) + Send + Sync + 'static,
 ) -> VarDef<M> {
+    let decl = ScalarVariable::real_parameter(name, 0, description, si_unit(unit), start);
     VarDef::new(
-        name,
-        description,
-        Causality::Parameter,
-        Variability::Fixed,
-        Some(Initial::Exact),
-        real_kind(Some(start), unit, display_unit(unit), Some(min), Some(max)),
+        displayed(decl, unit)
+            .with_real_range(min, max)
+            .with_initial(Initial::Exact),
         Box::new(move |m| Value::Real(get(m))),
         Some(Box::new(move |m, v| match v {
             Value::Real(x) if x.is_finite() && x >= min && x <= max => {
@@ -201,16 +182,9 @@ pub fn integer_parameter<M: 'static>(
     set: fn(&mut M, i32),
 ) -> VarDef<M> {
     VarDef::new(
-        name,
-        description,
-        Causality::Parameter,
-        Variability::Fixed,
-        Some(Initial::Exact),
-        VarKind::Integer {
-            start: Some(start),
-            min: Some(min),
-            max: Some(max),
-        },
+        ScalarVariable::integer_parameter(name, 0, description, start)
+            .with_integer_range(min, max)
+            .with_initial(Initial::Exact),
         Box::new(move |m| Value::Integer(get(m))),
         Some(Box::new(move |m, v| match v {
             Value::Integer(x) if (min..=max).contains(&x) => {
@@ -236,12 +210,9 @@ pub fn enum_parameter<M: 'static>(
     set: fn(&mut M, i32),
 ) -> VarDef<M> {
     let mut v = integer_parameter(name, description, start, min, max, get, set);
-    v.decl.kind = VarKind::Enumeration {
-        declared_type: declared_type.to_string(),
-        start: Some(start),
-        min: Some(min),
-        max: Some(max),
-    };
+    v.decl = ScalarVariable::enumeration_parameter(name, 0, description, declared_type, start)
+        .with_integer_range(min, max)
+        .with_initial(Initial::Exact);
     v
 }
 
@@ -254,12 +225,7 @@ pub fn boolean_parameter<M: 'static>(
     set: impl Fn(&mut M, bool) + Send + Sync + 'static,
 ) -> VarDef<M> {
     VarDef::new(
-        name,
-        description,
-        Causality::Parameter,
-        Variability::Fixed,
-        Some(Initial::Exact),
-        VarKind::Boolean { start: Some(start) },
+        ScalarVariable::boolean_parameter(name, 0, description, start).with_initial(Initial::Exact),
         Box::new(move |m| Value::Boolean(get(m))),
         Some(Box::new(move |m, v| match v {
             Value::Boolean(b) => {

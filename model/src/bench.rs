@@ -215,21 +215,26 @@ impl Bench {
     fn valve_flows(&self, x: &[f64], u: [f64; 2]) -> [[f64; 2]; 2] {
         let mut q = [[0.0; 2]; 2];
         for (k, valve) in self.valves.iter().enumerate() {
-            let ports = self.circuit.valve_ports[k];
             let o = self.layout.sv[k];
             let f = valve.flows(
                 u[k],
                 &x[o..o + valve.n_states()],
-                &PortPressures {
-                    supply: self.params.supply_pressure,
-                    tank: self.params.tank_pressure,
-                    a: self.pressure(x, ports[0]),
-                    b: self.pressure(x, ports[1]),
-                },
+                &self.port_pressures(x, k),
             );
             q[k] = [f.a, f.b];
         }
         q
+    }
+
+    /// Pressures at the four ports of valve k.
+    fn port_pressures(&self, x: &[f64], k: usize) -> PortPressures {
+        let ports = self.circuit.valve_ports[k];
+        PortPressures {
+            supply: self.params.supply_pressure,
+            tank: self.params.tank_pressure,
+            a: self.pressure(x, ports[0]),
+            b: self.pressure(x, ports[1]),
+        }
     }
 
     /// Right-hand side dx/dt = f(x, inputs). Returns the chamber inflows (Q1, Q2) from
@@ -258,14 +263,8 @@ impl Bench {
         for (k, valve) in self.valves.iter().enumerate() {
             let o = l.sv[k];
             let m = valve.n_states();
-            let ports = self.circuit.valve_ports[k];
-            let pp = PortPressures {
-                supply: self.params.supply_pressure,
-                tank: self.params.tank_pressure,
-                a: self.pressure(x, ports[0]),
-                b: self.pressure(x, ports[1]),
-            };
             // the port pressures reach valves whose dynamics feel them (flow forces)
+            let pp = self.port_pressures(x, k);
             valve.derivatives_at(u[k], &x[o..o + m], &pp, &mut dx[o..o + m]);
         }
         q_ch

@@ -162,6 +162,8 @@ pub struct ManifoldConfig {
     /// Oil density (kg/m3) and dynamic viscosity (Pa.s) for inertances and losses.
     pub density: f64,
     pub viscosity: f64,
+    /// Piston area (m2) the lumped fluid mass is referred to (3.16).
+    pub piston_area: f64,
 }
 
 /// Passages of the network, by kind and side (0 or 1), with their end points before
@@ -243,6 +245,7 @@ impl Circuit {
                 density: fluid.density,
                 viscosity: fluid
                     .dynamic_viscosity(fluid.temperature, crate::fluid::ATMOSPHERIC_PRESSURE),
+                piston_area: p.actuator.area,
             },
         )
     }
@@ -266,7 +269,7 @@ impl Circuit {
             circuit.chamber_volume = added_volume(mode).map(|v| v * c.volume_scale);
         }
         if c.inertia {
-            circuit.added_mass = equivalent_mass(mode, c.density) * c.inertia_scale;
+            circuit.added_mass = equivalent_mass(mode, c.density, c.piston_area) * c.inertia_scale;
         }
         circuit
     }
@@ -476,6 +479,8 @@ fn reference_network(mode: Mode, density: f64) -> Circuit {
             loss_scale: 0.0,
             density,
             viscosity: 0.0,
+            // the figures derived from it are per unit area
+            piston_area: 1.0,
         },
     )
 }
@@ -524,10 +529,9 @@ pub fn equivalent_mass_per_area2(mode: Mode, density: f64) -> f64 {
         .sum()
 }
 
-/// Table 3.4 for the bench's piston area.
-pub fn equivalent_mass(mode: Mode, density: f64) -> f64 {
-    let a = crate::params::ActuatorParams::default().area;
-    a * a * equivalent_mass_per_area2(mode, density)
+/// Table 3.4: the fluid mass referred to a piston of area `area` (m2).
+pub fn equivalent_mass(mode: Mode, density: f64, area: f64) -> f64 {
+    area * area * equivalent_mass_per_area2(mode, density)
 }
 
 #[cfg(test)]
@@ -557,7 +561,7 @@ mod tests {
             (Mode::FourWayParallel, 2.80),
             (Mode::ThreeWay, 3.42),
         ] {
-            let got = equivalent_mass(mode, RHO);
+            let got = equivalent_mass(mode, RHO, crate::params::ActuatorParams::default().area);
             assert!((got / m - 1.0).abs() < 5e-3, "{mode:?}: {got} vs {m}");
         }
     }
@@ -575,6 +579,7 @@ mod tests {
                 loss_scale: 1.0,
                 density: RHO,
                 viscosity: RHO * 46e-6, // VG 46 at 40 degC
+                piston_area: crate::params::ActuatorParams::default().area,
             },
         );
         let cn = net

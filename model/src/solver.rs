@@ -93,8 +93,10 @@ where
     }
     let n = x.len();
     let calls = RefCell::new(0usize);
-    let base = RefCell::new(vec![0.0; n]);
-    let shifted = RefCell::new(vec![0.0; n]);
+    // f at the point the Jacobian is taken, kept across its n columns: diffsol asks for
+    // them one by one at the same (t, y), and f(y) is the same for all of them
+    let base = RefCell::new((f64::NAN, vec![f64::NAN; n], vec![0.0; n]));
+    let shifted = RefCell::new((vec![0.0; n], vec![0.0; n]));
     let rhs = |y: &[f64], _p: &[f64], t: f64, dy: &mut [f64]| {
         *calls.borrow_mut() += 1;
         f(t, y, dy);
@@ -112,17 +114,23 @@ where
             jv.iter_mut().for_each(|e| *e = 0.0);
             return;
         }
-        let mut b = base.borrow_mut();
-        let mut s = shifted.borrow_mut();
-        f(t, y, &mut b);
-        let mut yh = y.to_vec();
-        for j in 0..n {
-            yh[j] += h * v[j];
+        let mut base = base.borrow_mut();
+        let (t_b, y_b, f_b) = &mut *base;
+        if *t_b != t || y_b.as_slice() != y {
+            *t_b = t;
+            y_b.copy_from_slice(y);
+            f(t, y, f_b);
+            *calls.borrow_mut() += 1;
         }
-        f(t, &yh, &mut s);
-        *calls.borrow_mut() += 2;
+        let mut shifted = shifted.borrow_mut();
+        let (yh, f_h) = &mut *shifted;
+        for j in 0..n {
+            yh[j] = y[j] + h * v[j];
+        }
+        f(t, yh, f_h);
+        *calls.borrow_mut() += 1;
         for i in 0..n {
-            jv[i] = (s[i] - b[i]) / h;
+            jv[i] = (f_h[i] - f_b[i]) / h;
         }
     };
     let x0 = x.to_vec();

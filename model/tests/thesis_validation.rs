@@ -43,7 +43,7 @@ fn table_3_5_natural_frequencies_within_one_percent() {
             let (mut extra, mut mass) = (act.extra_volume, act.inertial_mass);
             if *volume && *inertia {
                 extra = added_volume(*mode);
-                mass += equivalent_mass(*mode, p.fluid.density);
+                mass += equivalent_mass(*mode, p.fluid.density, p.actuator.area);
             }
             let beta = p.fluid.bulk_modulus;
             for (c, y) in [0.0, -0.15].iter().enumerate() {

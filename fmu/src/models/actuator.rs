@@ -9,6 +9,7 @@ use hbmodel::Params;
 use modeldesc::DefaultExperiment;
 use serde::{Deserialize, Serialize};
 
+use super::FORCE_INPUT;
 use super::{effect_switches, load_params, params_with, registry_parameters, HasParams};
 use crate::slave::{real_input, real_output, Model, ModelInfo, VarDef};
 
@@ -138,7 +139,7 @@ impl Model for ActuatorFmu {
                 "External force on the rod, opposing positive y",
                 "N",
                 0.0,
-                (Some(-1e5), Some(1e5)),
+                FORCE_INPUT,
                 |m: &Self| m.s.inputs[2],
                 |m, x| m.s.inputs[2] = x,
             ),

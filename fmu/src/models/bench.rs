@@ -10,6 +10,7 @@ use super::{
     effect_switches, load_params, registry_parameters, valve_model_code, valve_model_from,
     valve_model_type, HasParams, VALVE_MODEL_TYPE,
 };
+use super::{COMMAND_INPUT, FORCE_INPUT};
 use crate::slave::{
     enum_parameter, integer_parameter, real_input, real_output, Model, ModelInfo, VarDef,
 };
@@ -82,9 +83,9 @@ impl Model for BenchFmu {
     fn variables() -> Vec<VarDef<Self>> {
         let d = default_params();
         let mut v = vec![
-            real_input("u1", "Command of servovalve SV1", "V", 0.0, (Some(-10.0), Some(10.0)), |m: &Self| m.inputs.u1, |m, x| m.inputs.u1 = x),
-            real_input("u2", "Command of servovalve SV2 (ignored in mode 1, where SV2 stays at null)", "V", 0.0, (Some(-10.0), Some(10.0)), |m: &Self| m.inputs.u2, |m, x| m.inputs.u2 = x),
-            real_input("F_ext", "External force on the rod, opposing positive y", "N", 0.0, (Some(-1e5), Some(1e5)), |m: &Self| m.inputs.f_ext, |m, x| m.inputs.f_ext = x),
+            real_input("u1", "Command of servovalve SV1", "V", 0.0, COMMAND_INPUT, |m: &Self| m.inputs.u1, |m, x| m.inputs.u1 = x),
+            real_input("u2", "Command of servovalve SV2 (ignored in mode 1, where SV2 stays at null)", "V", 0.0, COMMAND_INPUT, |m: &Self| m.inputs.u2, |m, x| m.inputs.u2 = x),
+            real_input("F_ext", "External force on the rod, opposing positive y", "N", 0.0, FORCE_INPUT, |m: &Self| m.inputs.f_ext, |m, x| m.inputs.f_ext = x),
             real_output("y", "Piston position from mid stroke (positive extends chamber 1)", "m", |m: &Self| m.out.y).depends_on(&[]),
             real_output("v", "Piston velocity", "m/s", |m: &Self| m.out.v).depends_on(&[]),
             real_output("a", "Piston acceleration", "m/s2", |m: &Self| m.out.a).depends_on(&["F_ext"]),

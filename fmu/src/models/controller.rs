@@ -83,6 +83,7 @@ impl ControllerFmu {
         ControllerFmu {
             reference: Dao2::new(cp.dao2[0], cp.dao2[1], cp.period),
             cp,
+            // mid stroke, chambers near half supply, the thesis's 80 bar pressure reference
             inputs: [0.0, 0.0, 1e7, 1e7, 80e5],
             out: [0.0; 2],
             t: 0.0,

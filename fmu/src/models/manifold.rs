@@ -16,6 +16,7 @@ use hbmodel::Params;
 use modeldesc::DefaultExperiment;
 use serde::{Deserialize, Serialize};
 
+use super::PRESSURE_INPUT;
 use super::{effect_switches, load_params, params_with, registry_parameters, HasParams};
 use crate::slave::{integer_parameter, real_input, real_output, Model, ModelInfo, VarDef};
 
@@ -132,8 +133,8 @@ impl Model for ManifoldFmu {
             real_input("Q_B1", "Flow out of port B of SV1", "m3/s", 0.0, (None, None), |m: &Self| m.s.inputs[1], |m, x| m.s.inputs[1] = x),
             real_input("Q_A2", "Flow out of port A of SV2", "m3/s", 0.0, (None, None), |m: &Self| m.s.inputs[2], |m, x| m.s.inputs[2] = x),
             real_input("Q_B2", "Flow out of port B of SV2", "m3/s", 0.0, (None, None), |m: &Self| m.s.inputs[3], |m, x| m.s.inputs[3] = x),
-            real_input("P1", "Pressure in chamber 1", "Pa", mid, (Some(0.0), Some(1e8)), |m: &Self| m.s.inputs[4], |m, x| m.s.inputs[4] = x),
-            real_input("P2", "Pressure in chamber 2", "Pa", mid, (Some(0.0), Some(1e8)), |m: &Self| m.s.inputs[5], |m, x| m.s.inputs[5] = x),
+            real_input("P1", "Pressure in chamber 1", "Pa", mid, PRESSURE_INPUT, |m: &Self| m.s.inputs[4], |m, x| m.s.inputs[4] = x),
+            real_input("P2", "Pressure in chamber 2", "Pa", mid, PRESSURE_INPUT, |m: &Self| m.s.inputs[5], |m, x| m.s.inputs[5] = x),
             real_output("P_A1", "Pressure at port A of SV1", "Pa", |m: &Self| m.out[0]).depends_on(&["P1", "P2"]),
             real_output("P_B1", "Pressure at port B of SV1", "Pa", |m: &Self| m.out[1]).depends_on(&["P1", "P2"]),
             real_output("P_A2", "Pressure at port A of SV2", "Pa", |m: &Self| m.out[2]).depends_on(&["P1", "P2"]),

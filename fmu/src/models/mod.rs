@@ -112,6 +112,17 @@ pub fn load_params(resources: Option<&Path>, default: Params) -> Result<Params, 
     }
 }
 
+/// Bounds of absolute-pressure inputs (Pa): never negative; 1000 bar is five times the
+/// bench's 210 bar supply, so a value above it is a unit or wiring error of the master.
+pub const PRESSURE_INPUT: (Option<f64>, Option<f64>) = (Some(0.0), Some(1e8));
+
+/// Bounds of external-force inputs (N): five times the 20 kN the actuator produces at
+/// 210 bar (9.456 cm2), beyond which the input cannot be a load of this bench.
+pub const FORCE_INPUT: (Option<f64>, Option<f64>) = (Some(-1e5), Some(1e5));
+
+/// Bounds of servovalve commands (V): the D765's rated input.
+pub const COMMAND_INPUT: (Option<f64>, Option<f64>) = (Some(-10.0), Some(10.0));
+
 /// Name of the enumeration type that selects a servovalve model.
 pub const VALVE_MODEL_TYPE: &str = "HydroBench.ValveModel";
 

@@ -13,6 +13,7 @@ use super::{
     effect_switches, load_params, params_with, registry_parameters, valve_model_code,
     valve_model_from, valve_model_type, HasParams, VALVE_MODEL_TYPE,
 };
+use super::{COMMAND_INPUT, PRESSURE_INPUT};
 use crate::slave::{enum_parameter, real_input, real_output, Model, ModelInfo, VarDef};
 
 #[derive(Debug, Clone, Copy, Default, Serialize, Deserialize)]
@@ -99,7 +100,7 @@ impl Model for ServovalveFmu {
                 "Valve command",
                 "V",
                 0.0,
-                (Some(-10.0), Some(10.0)),
+                COMMAND_INPUT,
                 |m: &Self| m.inputs.u,
                 |m, x| m.inputs.u = x,
             ),
@@ -108,7 +109,7 @@ impl Model for ServovalveFmu {
                 "Supply pressure (absolute)",
                 "Pa",
                 d.supply_pressure,
-                (Some(0.0), Some(1e8)),
+                PRESSURE_INPUT,
                 |m: &Self| m.inputs.ports[0],
                 |m, x| m.inputs.ports[0] = x,
             ),
@@ -117,7 +118,7 @@ impl Model for ServovalveFmu {
                 "Tank pressure (absolute)",
                 "Pa",
                 d.tank_pressure,
-                (Some(0.0), Some(1e8)),
+                PRESSURE_INPUT,
                 |m: &Self| m.inputs.ports[1],
                 |m, x| m.inputs.ports[1] = x,
             ),
@@ -126,7 +127,7 @@ impl Model for ServovalveFmu {
                 "Pressure at port A (absolute)",
                 "Pa",
                 0.5 * (d.supply_pressure + d.tank_pressure),
-                (Some(0.0), Some(1e8)),
+                PRESSURE_INPUT,
                 |m: &Self| m.inputs.ports[2],
                 |m, x| m.inputs.ports[2] = x,
             ),
@@ -135,7 +136,7 @@ impl Model for ServovalveFmu {
                 "Pressure at port B (absolute)",
                 "Pa",
                 0.5 * (d.supply_pressure + d.tank_pressure),
-                (Some(0.0), Some(1e8)),
+                PRESSURE_INPUT,
                 |m: &Self| m.inputs.ports[3],
                 |m, x| m.inputs.ports[3] = x,
             ),

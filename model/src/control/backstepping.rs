@@ -228,18 +228,9 @@ impl Law for PY {
 mod tests {
     use super::*;
 
-    /// Bench data of the brief / Table 1.1 (mode 3 control model).
-    const MASS: f64 = 5.8;
-    const AREA: f64 = 9.456e-4;
-    const BETA: f64 = 1.7e9;
-    const V0: f64 = 1.56e-4;
-    const SUPPLY: f64 = 210e5;
-    const TANK: f64 = 2e5;
-    /// 19 L/min at 10 V, in m3/s/V.
-    const FLOW_PER_VOLT: f64 = 19e-3 / 60.0 / 10.0;
-    /// Rated drop per land (70 bar total over two lands).
-    const RATED_DROP: f64 = 35e5;
-    const VISCOUS: f64 = 400.0;
+    use crate::control::law::fixtures::*;
+    use crate::control::trajectory::Trajectory;
+
     /// Payload of the robustness check: +20 kg, one of the Table 7.1 cases.
     const PAYLOAD: f64 = 20.0;
 
@@ -256,42 +247,14 @@ mod tests {
     const T_STATIC: f64 = 0.45;
 
     fn model(mass: f64) -> ControlModel {
-        ControlModel {
-            area: AREA,
-            mass,
-            bulk_modulus: BETA,
-            v0: V0,
-            viscous: VISCOUS,
-            supply: SUPPLY,
-            tank: TANK,
-            flow_per_volt: FLOW_PER_VOLT,
-            rated_drop: RATED_DROP,
-        }
+        thesis_model(mass)
     }
 
-    /// y_d and its first three derivatives: s(tau) = 35 tau^4 - 84 tau^5 + 70 tau^6 -
-    /// 20 tau^7 has zero velocity, acceleration and jerk at both ends (C3).
+    /// y_d and its first three derivatives: the 7th-order move of section 5.5.
     fn position_reference(t: f64) -> [f64; 4] {
-        let tau = ((t - T_START) / DURATION).clamp(0.0, 1.0);
-        if tau <= 0.0 {
-            return [0.0; 4];
-        }
-        if tau >= 1.0 {
-            return [STROKE, 0.0, 0.0, 0.0];
-        }
-        let t2 = tau * tau;
-        let t3 = t2 * tau;
-        let t4 = t3 * tau;
-        let s = t4 * (35.0 - 84.0 * tau + 70.0 * t2 - 20.0 * t3);
-        let ds = t3 * (140.0 - 420.0 * tau + 420.0 * t2 - 140.0 * t3);
-        let dds = t2 * (420.0 - 1680.0 * tau + 2100.0 * t2 - 840.0 * t3);
-        let ddds = tau * (840.0 - 5040.0 * tau + 8400.0 * t2 - 4200.0 * t3);
-        [
-            STROKE * s,
-            STROKE * ds / DURATION,
-            STROKE * dds / DURATION.powi(2),
-            STROKE * ddds / DURATION.powi(3),
-        ]
+        Trajectory::new(&[(T_START, 0.0, STROKE, DURATION)])
+            .expect("one valid move")
+            .at(t)
     }
 
     fn reference(t: f64) -> Reference {

@@ -78,3 +78,37 @@ impl ControlModel {
             / 2.0
     }
 }
+
+/// The thesis's mode-3 control model (Table 1.1, section 4.4, (II.2) with the
+/// catalogue's 35 bar per land), shared by the laws' tests.
+#[cfg(test)]
+pub(crate) mod fixtures {
+    use super::ControlModel;
+
+    pub const MASS: f64 = 5.8;
+    pub const AREA: f64 = 9.456e-4;
+    pub const BETA: f64 = 1.7e9;
+    /// Chamber volume at mid stroke: 14.184 cm3 + A * 0.15 m.
+    pub const V0: f64 = 1.56e-4;
+    pub const SUPPLY: f64 = 210e5;
+    pub const TANK: f64 = 2e5;
+    /// 19 L/min at 10 V, in m3/s/V.
+    pub const FLOW_PER_VOLT: f64 = 19e-3 / 60.0 / 10.0;
+    /// Rated drop per land (70 bar total over two lands).
+    pub const RATED_DROP: f64 = 35e5;
+    pub const VISCOUS: f64 = 400.0;
+
+    pub fn thesis_model(mass: f64) -> ControlModel {
+        ControlModel {
+            area: AREA,
+            mass,
+            bulk_modulus: BETA,
+            v0: V0,
+            viscous: VISCOUS,
+            supply: SUPPLY,
+            tank: TANK,
+            flow_per_volt: FLOW_PER_VOLT,
+            rated_drop: RATED_DROP,
+        }
+    }
+}

@@ -178,16 +178,7 @@ mod tests {
     use super::super::trajectory::Trajectory;
     use super::*;
 
-    const MASS: f64 = 5.8;
-    const AREA: f64 = 9.456e-4;
-    const BETA: f64 = 1.7e9;
-    const V0: f64 = 1.56e-4;
-    const SUPPLY: f64 = 210e5;
-    const TANK: f64 = 2e5;
-    /// 19 L/min at 10 V.
-    const FLOW_PER_VOLT: f64 = 19e-3 / 60.0 / 10.0;
-    const RATED_DROP: f64 = 35e5;
-    const VISCOUS: f64 = 400.0;
+    use crate::control::law::fixtures::*;
     const GRAVITY: f64 = 9.81;
     const PLANT_STEP: f64 = 1e-5;
     const PERIOD: f64 = 1e-3;
@@ -195,17 +186,7 @@ mod tests {
     const LSB: f64 = 0.3 / 65536.0;
 
     fn model() -> ControlModel {
-        ControlModel {
-            area: AREA,
-            mass: MASS,
-            bulk_modulus: BETA,
-            v0: V0,
-            viscous: VISCOUS,
-            supply: SUPPLY,
-            tank: TANK,
-            flow_per_volt: FLOW_PER_VOLT,
-            rated_drop: RATED_DROP,
-        }
+        thesis_model(MASS)
     }
 
     /// (II.1) with (II.2), no dry friction, no external force; state y, v, P1, P2.
