@@ -8,7 +8,7 @@ use crate::effects::Effect;
 use crate::fluid::FluidParams;
 use crate::manifold::{Circuit, NetworkState, Port};
 use crate::params::{Mode, ParamError, Params};
-use crate::servovalve::{self, PortPressures, Servovalve};
+use crate::servovalve::{self, PortFlows, PortPressures, Servovalve};
 use crate::solver::{self, SolverError, SolverStats, Tolerances};
 
 /// Inputs held constant over one integration interval.
@@ -42,6 +42,8 @@ pub struct Outputs {
     /// Flows from the manifold into the chambers.
     pub q1: f64,
     pub q2: f64,
+    /// Flow both servovalves draw from the supply (m3/s).
+    pub q_supply: f64,
     /// Spool positions (m).
     pub x_s1: f64,
     pub x_s2: f64,
@@ -213,17 +215,19 @@ impl Bench {
 
     /// Valve port flows for the state.
     fn valve_flows(&self, x: &[f64], u: [f64; 2]) -> [[f64; 2]; 2] {
-        let mut q = [[0.0; 2]; 2];
-        for (k, valve) in self.valves.iter().enumerate() {
+        self.valve_port_flows(x, u).map(|f| [f.a, f.b])
+    }
+
+    fn valve_port_flows(&self, x: &[f64], u: [f64; 2]) -> [PortFlows; 2] {
+        std::array::from_fn(|k| {
+            let valve = &self.valves[k];
             let o = self.layout.sv[k];
-            let f = valve.flows(
+            valve.flows(
                 u[k],
                 &x[o..o + valve.n_states()],
                 &self.port_pressures(x, k),
-            );
-            q[k] = [f.a, f.b];
-        }
-        q
+            )
+        })
     }
 
     /// Pressures at the four ports of valve k.
@@ -275,7 +279,7 @@ impl Bench {
         let mut dx = vec![0.0; self.layout.len];
         let q_in = self.derivatives(x, inputs, &mut dx);
         let u = self.commands(inputs);
-        let qv = self.valve_flows(x, u);
+        let qv = self.valve_port_flows(x, u);
         let ports = &self.circuit.valve_ports;
         let motion = self
             .actuator
@@ -294,10 +298,11 @@ impl Bench {
             p_b1: self.pressure(x, ports[0][1]),
             p_a2: self.pressure(x, ports[1][0]),
             p_b2: self.pressure(x, ports[1][1]),
-            q_a1: qv[0][0],
-            q_b1: qv[0][1],
-            q_a2: qv[1][0],
-            q_b2: qv[1][1],
+            q_a1: qv[0].a,
+            q_b1: qv[0].b,
+            q_a2: qv[1].a,
+            q_b2: qv[1].b,
+            q_supply: qv[0].supply + qv[1].supply,
             q1: q_in[0],
             q2: q_in[1],
             x_s1: spool(0),

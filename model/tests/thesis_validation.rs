@@ -302,3 +302,39 @@ fn state_snapshot_restores_a_bit_identical_trajectory() {
     bad.x.pop();
     assert!(sim.set_state(bad).is_err());
 }
+
+#[test]
+fn supply_flow_feeds_the_moving_piston_in_every_mode() {
+    // Without leakage, on average over the piston's (undamped) oil-spring oscillation all
+    // the supply delivers goes into the growing chamber, Q_supply = A v; in mode 3 SV2's
+    // P->B land, whose B port is plugged to tank, adds a bypass straight to tank.
+    for mode in [Mode::FourWaySingle, Mode::FourWayParallel, Mode::ThreeWay] {
+        let p = Params {
+            mode,
+            ..Params::default()
+        };
+        let mut sim = Simulation::new(&p).unwrap();
+        sim.set_inputs(Inputs {
+            u1: 2.0,
+            u2: -2.0,
+            f_ext: 0.0,
+        });
+        let (mut supplied, mut delivered, mut bypass, mut v_min) = (0.0, 0.0, 0.0, f64::MAX);
+        let n = 500;
+        for k in 1..=n {
+            sim.advance_to(0.01 + 1e-4 * k as f64).unwrap();
+            let o = sim.outputs();
+            supplied += o.q_supply / n as f64;
+            delivered += p.actuator.area * o.v / n as f64;
+            v_min = v_min.min(o.v);
+            if mode == Mode::ThreeWay {
+                bypass += o.q_b2 / n as f64;
+            }
+        }
+        assert!(v_min > 0.01, "{mode:?}: the piston must run, v >= {v_min}");
+        assert!(
+            ((supplied - bypass) / delivered - 1.0).abs() < 0.02,
+            "{mode:?}: mean Q_supply {supplied} (bypass {bypass}) against mean A v {delivered}"
+        );
+    }
+}

@@ -97,6 +97,7 @@ impl Model for BenchFmu {
             real_output("P_B2", "Pressure at port B of SV2", "Pa", |m: &Self| m.out.p_b2).depends_on(&[]),
             real_output("Q1", "Flow from the manifold into chamber 1", "m3/s", |m: &Self| m.out.q1).depends_on(&["u1", "u2"]),
             real_output("Q2", "Flow from the manifold into chamber 2", "m3/s", |m: &Self| m.out.q2).depends_on(&["u1", "u2"]),
+            real_output("Q_supply", "Flow both servovalves draw from the supply (pilot stages included); supply power = supply_pressure * Q_supply", "m3/s", |m: &Self| m.out.q_supply).depends_on(&["u1", "u2"]),
             real_output("x_s1", "Spool position of SV1", "m", |m: &Self| m.out.x_s1).depends_on(&["u1"]),
             real_output("x_s2", "Spool position of SV2", "m", |m: &Self| m.out.x_s2).depends_on(&["u2"]),
             integer_parameter("mode", "Working mode: 1 = SV1 4-way, 2 = both 4-way in parallel, 3 = each 3-way on one chamber", d.mode.number() as i32, 1, 3, |m: &Self| m.params.mode.number() as i32, |m, k| {

@@ -11,6 +11,7 @@ pub mod dao2;
 pub mod law;
 pub mod model_free;
 pub mod sampled;
+pub mod scenario;
 pub mod trajectory;
 
 use crate::bench::{Inputs, Outputs, Simulation};

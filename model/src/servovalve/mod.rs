@@ -21,6 +21,9 @@ pub struct PortPressures {
 pub struct PortFlows {
     pub a: f64,
     pub b: f64,
+    /// Flow drawn from the supply port P, pilot stage included (m3/s): the hydraulic
+    /// power the valve takes is P_supply * supply.
+    pub supply: f64,
 }
 
 /// One servovalve model. `command` is the valve input in volts as on the bench (+-10 V).

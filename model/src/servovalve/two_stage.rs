@@ -775,10 +775,13 @@ impl Servovalve for TwoStageServovalve {
 
     fn flows(&self, _command: f64, x: &[f64], p: &PortPressures) -> PortFlows {
         let f = self.land_flows(x[X_S], p);
+        let pilot = self.pilot_flows(p.supply, p.tank, x[P_L], x[P_R], self.lfe * x[THETA]);
         // (2.40)
         PortFlows {
             a: f.q[0] - f.q[1],
             b: f.q[3] - f.q[2],
+            // (2.40) metering lands from P, plus (2.1)-(2.2) the pilot inlets
+            supply: f.q[0] + f.q[3] + pilot.q_pl + pilot.q_pr,
         }
     }
 }
