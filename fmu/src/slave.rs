@@ -77,14 +77,19 @@ pub fn display_unit(unit: &str) -> Option<&'static str> {
 }
 
 /// A continuous real input with a start value and optional bounds.
+/// Reads a real variable out of a model.
+pub type RealGetter<M> = fn(&M) -> f64;
+/// Writes a real variable into a model.
+pub type RealSetter<M> = fn(&mut M, f64);
+
 pub fn real_input<M: 'static>(
     name: &str,
     description: &str,
     unit: &str,
     start: f64,
     bounds: (Option<f64>, Option<f64>),
-    get: fn(&M) -> f64,
-    set: fn(&mut M, f64),
+    get: RealGetter<M>,
+    set: RealSetter<M>,
 ) -> VarDef<M> {
     let (min, max) = bounds;
     let mut decl = displayed(

@@ -492,3 +492,72 @@ mod tests {
         assert_eq!(zero_order_hold(&t, &y, 10.0), 3.0);
     }
 }
+
+/// The acquisition delay (effect `sensor_delay`): what a sample taken at t reads is the
+/// physical signal at t - delay, interpolated linearly between recorded instants. Record
+/// the instant [`DelayLine::read_instant_within`] names and the read is exact in time.
+#[derive(Debug, Clone, PartialEq, Serialize, Deserialize)]
+pub struct DelayLine {
+    delay: f64,
+    /// (time, signals), in time order.
+    history: Vec<(f64, crate::control::Measurement)>,
+}
+
+impl DelayLine {
+    /// A line holding `m` since `t0` (before its start the signal is held).
+    pub fn new(delay: f64, t0: f64, m: crate::control::Measurement) -> Self {
+        DelayLine {
+            delay: delay.max(0.0),
+            history: vec![(t0, m)],
+        }
+    }
+
+    pub fn delay(&self) -> f64 {
+        self.delay
+    }
+
+    /// Record the physical signals at t (t not before the last record).
+    pub fn record(&mut self, t: f64, m: crate::control::Measurement) {
+        match self.history.last_mut() {
+            Some(last) if last.0 == t => last.1 = m,
+            _ => self.history.push((t, m)),
+        }
+    }
+
+    /// The instant in (from, to) whose signals the sample at `to` will read, if the delay
+    /// puts it strictly inside the interval.
+    pub fn read_instant_within(&self, from: f64, to: f64) -> Option<f64> {
+        let t = to - self.delay;
+        (self.delay > 0.0 && t > from && t < to).then_some(t)
+    }
+
+    /// The sample taken at t.
+    pub fn read(&self, t: f64) -> crate::control::Measurement {
+        let t = t - self.delay;
+        let h = &self.history;
+        let i = h.partition_point(|(ti, _)| *ti <= t);
+        if i == 0 {
+            return h[0].1;
+        }
+        if i == h.len() {
+            return h[i - 1].1;
+        }
+        let ((ta, a), (tb, b)) = (h[i - 1], h[i]);
+        let w = (t - ta) / (tb - ta);
+        let lerp = |x: f64, y: f64| x + w * (y - x);
+        crate::control::Measurement {
+            y: lerp(a.y, b.y),
+            p1: lerp(a.p1, b.p1),
+            p2: lerp(a.p2, b.p2),
+        }
+    }
+
+    /// Drop what no read at or after `t` + delay can need (one record before t is kept
+    /// for the interpolation).
+    pub fn forget_before(&mut self, t: f64) {
+        let drop = self.history.partition_point(|(ti, _)| *ti < t - self.delay);
+        if drop > 1 {
+            self.history.drain(..drop - 1);
+        }
+    }
+}

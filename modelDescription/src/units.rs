@@ -153,6 +153,7 @@ pub fn unit_definitions() -> Vec<Unit> {
         unit("m", dims(0, 1, 0), &[("mm", 1e3, 0.0), ("um", 1e6, 0.0)]),
         unit("m/s", dims(0, 1, -1), &[("mm/s", 1e3, 0.0)]),
         unit("m/s2", dims(0, 1, -2), &[]),
+        unit("m/s3", dims(0, 1, -3), &[]),
         unit("N", dims(1, 1, -2), &[("kN", 1e-3, 0.0)]),
         unit("N/m", dims(1, 0, -2), &[("N/mm", 1e-3, 0.0)]),
         unit("N.s/m", dims(1, 0, -1), &[]),

@@ -26,7 +26,9 @@ REQUIRED = {
     },
     "manifold": {
         "input": {"Q_A1": "m3/s", "Q_B1": "m3/s", "Q_A2": "m3/s", "Q_B2": "m3/s",
-                  "P1": "Pa", "P2": "Pa"},
+                  "P1": "Pa", "P2": "Pa",
+                  # the valves' flow sensitivities, for stable co-simulation (docs/cosim.md)
+                  **{f"dQ_{p}{k}_dP_{p}{k}": "m3/(s.Pa)" for p in "AB" for k in "12"}},
         "output": {"P_A1": "Pa", "P_B1": "Pa", "P_A2": "Pa", "P_B2": "Pa",
                    "Q1": "m3/s", "Q2": "m3/s"},
         "parameter": {"mode": None},
@@ -45,7 +47,9 @@ REQUIRED = {
                       "payload_mass": "kg", **{f"effect.{e}": None for e in EFFECTS}},
     },
     "controller": {
-        "input": {"y_ref": "m", "y": "m", "P1": "Pa", "P2": "Pa", "P_ref": "Pa"},
+        "input": {"y_ref": "m", "y": "m", "P1": "Pa", "P2": "Pa", "P_ref": "Pa",
+                  # the reference's derivatives, used when reference_derivatives is true
+                  "dy_ref": "m/s", "d2y_ref": "m/s2", "d3y_ref": "m/s3"},
         "output": {"u1": "V", "u2": "V"},
         "parameter": {"law": None, "Kp": "V/m"},
     },

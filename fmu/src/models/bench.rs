@@ -2,7 +2,9 @@
 
 use std::path::Path;
 
+use hbmodel::control::Measurement;
 use hbmodel::effects::Effect;
+use hbmodel::sensors::DelayLine;
 use hbmodel::{Inputs, Outputs, Params, SimState, Simulation};
 use modeldesc::DefaultExperiment;
 
@@ -20,6 +22,9 @@ pub struct BenchFmu {
     pub(crate) inputs: Inputs,
     sim: Option<Simulation>,
     pub(crate) out: Outputs,
+    /// The acquisition's view of y, P1, P2 (delayed when `sensor_delay` is on).
+    sensed: Option<DelayLine>,
+    pub(crate) measured: Measurement,
     start_time: f64,
 }
 
@@ -29,6 +34,7 @@ impl HasParams for BenchFmu {
     }
     fn params_mut(&mut self) -> &mut Params {
         self.sim = None;
+        self.sensed = None;
         &mut self.params
     }
 }
@@ -51,10 +57,44 @@ impl BenchFmu {
         sim.set_inputs(self.inputs);
         Ok(sim)
     }
+
+    fn sensor_delay(&self) -> f64 {
+        if self.params.has(Effect::SensorDelay) {
+            self.params.sensors.delay
+        } else {
+            0.0
+        }
+    }
+
+    /// Advance to t, recording the instants the delayed acquisition will read.
+    fn advance(&mut self, t: f64) -> Result<(), String> {
+        let sim = self.sim()?;
+        let from = sim.time();
+        let first = Measurement::of(&sim.outputs());
+        let delay = self.sensor_delay();
+        let mut line = self
+            .sensed
+            .take()
+            .unwrap_or_else(|| DelayLine::new(delay, from, first));
+        let result = (|| {
+            if let Some(t_read) = line.read_instant_within(from, t) {
+                let sim = self.sim()?;
+                sim.advance_to(t_read).map_err(|e| e.to_string())?;
+                line.record(t_read, Measurement::of(&sim.outputs()));
+            }
+            let sim = self.sim()?;
+            sim.advance_to(t).map_err(|e| e.to_string())?;
+            line.record(t, Measurement::of(&sim.outputs()));
+            line.forget_before(from);
+            Ok(())
+        })();
+        self.sensed = Some(line);
+        result
+    }
 }
 
 impl Model for BenchFmu {
-    type Snapshot = (Params, SimState);
+    type Snapshot = (Params, SimState, Option<DelayLine>);
 
     fn info() -> ModelInfo {
         ModelInfo {
@@ -100,6 +140,9 @@ impl Model for BenchFmu {
             real_output("Q_supply", "Flow both servovalves draw from the supply (pilot stages included); supply power = supply_pressure * Q_supply", "m3/s", |m: &Self| m.out.q_supply).depends_on(&["u1", "u2"]),
             real_output("x_s1", "Spool position of SV1", "m", |m: &Self| m.out.x_s1).depends_on(&["u1"]),
             real_output("x_s2", "Spool position of SV2", "m", |m: &Self| m.out.x_s2).depends_on(&["u2"]),
+            real_output("y_meas", "Position as the acquisition samples it: y delayed by sensors.delay when effect.sensor_delay is on", "m", |m: &Self| m.measured.y).depends_on(&[]),
+            real_output("P1_meas", "Chamber-1 pressure as the acquisition samples it (delayed like y_meas)", "Pa", |m: &Self| m.measured.p1).depends_on(&[]),
+            real_output("P2_meas", "Chamber-2 pressure as the acquisition samples it (delayed like y_meas)", "Pa", |m: &Self| m.measured.p2).depends_on(&[]),
             integer_parameter("mode", "Working mode: 1 = SV1 4-way, 2 = both 4-way in parallel, 3 = each 3-way on one chamber", d.mode.number() as i32, 1, 3, |m: &Self| m.params.mode.number() as i32, |m, k| {
                 if let Ok(mode) = hbmodel::Mode::try_from(k as u8) {
                     m.params_mut().mode = mode;
@@ -138,6 +181,8 @@ impl Model for BenchFmu {
             inputs: Inputs::default(),
             sim: None,
             out: Outputs::default(),
+            sensed: None,
+            measured: Measurement::default(),
             start_time: 0.0,
         })
     }
@@ -145,18 +190,24 @@ impl Model for BenchFmu {
     fn initialize(&mut self, start_time: f64) -> Result<(), String> {
         self.start_time = start_time;
         self.sim = None;
+        self.sensed = None;
         self.refresh()
     }
 
     fn refresh(&mut self) -> Result<(), String> {
-        self.out = self.sim()?.outputs();
+        let sim = self.sim()?;
+        let (out, t) = (sim.outputs(), sim.time());
+        self.out = out;
+        self.measured = match &self.sensed {
+            Some(line) => line.read(t),
+            None => Measurement::of(&self.out),
+        };
         Ok(())
     }
 
     fn do_step(&mut self, h: f64) -> Result<(), String> {
-        let sim = self.sim()?;
-        let t = sim.time() + h;
-        sim.advance_to(t).map_err(|e| e.to_string())
+        let t = self.sim()?.time() + h;
+        self.advance(t)
     }
 
     fn time(&self) -> f64 {
@@ -173,11 +224,12 @@ impl Model for BenchFmu {
                 step: None,
             },
         };
-        (self.params.clone(), state)
+        (self.params.clone(), state, self.sensed.clone())
     }
 
-    fn restore(&mut self, (params, state): Self::Snapshot) -> Result<(), String> {
+    fn restore(&mut self, (params, state, sensed): Self::Snapshot) -> Result<(), String> {
         self.params = params;
+        self.sensed = sensed;
         self.inputs = state.inputs;
         self.start_time = state.t;
         self.sim = None;

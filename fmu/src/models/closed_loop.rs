@@ -12,6 +12,7 @@ use serde::{Deserialize, Serialize};
 
 use super::bench::BenchFmu;
 use super::controller::ControllerFmu;
+use super::HasParams;
 use crate::slave::{project, Model, ModelInfo, VarDef};
 
 pub struct ClosedLoopFmu {
@@ -35,8 +36,9 @@ impl ClosedLoopFmu {
     /// takes the commands.
     fn couple(&mut self) -> Result<(), String> {
         self.plant.refresh()?;
-        let o = self.plant.out;
-        self.controller.inputs[1..4].copy_from_slice(&[o.y, o.p1, o.p2]);
+        // the controller reads the acquisition, delayed when sensor_delay is on
+        let m = self.plant.measured;
+        self.controller.inputs[1..4].copy_from_slice(&[m.y, m.p1, m.p2]);
         self.controller.refresh()?;
         let [u1, u2] = self.controller.out;
         self.plant.inputs.u1 = u1;
@@ -107,6 +109,8 @@ impl Model for ClosedLoopFmu {
 
     fn initialize(&mut self, start_time: f64) -> Result<(), String> {
         self.plant.initialize(start_time)?;
+        // the laws are written for this plant (its payload stays unknown to them)
+        self.controller.plant = self.plant.params().clone();
         self.controller.initialize(start_time)?;
         self.couple()
     }

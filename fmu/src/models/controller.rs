@@ -17,8 +17,10 @@ use hbmodel::{Outputs, Params};
 use modeldesc::{DefaultExperiment, EnumItem, EnumerationType};
 use serde::{Deserialize, Serialize};
 
+use super::load_params;
 use crate::slave::{
-    enum_parameter, real_input, real_output, real_parameter, Model, ModelInfo, VarDef,
+    boolean_parameter, enum_parameter, real_input, real_output, real_parameter, Model, ModelInfo,
+    VarDef,
 };
 
 /// Name of the enumeration type of the control laws.
@@ -67,24 +69,32 @@ fn law_from(code: i32) -> LawKind {
 #[derive(Debug, Clone, Serialize, Deserialize)]
 pub struct ControllerFmu {
     cp: ControllerParams,
-    /// y_ref, y, P1, P2, P_ref
-    pub(crate) inputs: [f64; 5],
+    /// y_ref, y, P1, P2, P_ref, dy_ref, d2y_ref, d3y_ref
+    pub(crate) inputs: [f64; 8],
+    /// Take the reference's derivatives from the inputs instead of a DAO2 on y_ref.
+    derivatives_given: bool,
+    /// The bench the laws' control model (II.1)-(II.2) is written for: the shipped
+    /// parameter file, or the plant's own parameters inside bench_closed_loop.fmu. The
+    /// payload stays unknown to the laws (chapter 7).
+    pub(crate) plant: Params,
     pub(crate) out: [f64; 2],
     t: f64,
     controller: Option<SampledController>,
     reference: Dao2,
     /// The sample taken at the current time: its inputs and the memories before it, so
     /// that inputs set again at the same instant (Jacobi masters) replace it cleanly.
-    sample: Option<(f64, [f64; 5], Option<SampledController>, Dao2)>,
+    sample: Option<(f64, [f64; 8], Option<SampledController>, Dao2)>,
 }
 
 impl ControllerFmu {
-    fn fresh(cp: ControllerParams) -> Self {
+    fn fresh(cp: ControllerParams, derivatives_given: bool, plant: Params) -> Self {
         ControllerFmu {
             reference: Dao2::new(cp.dao2[0], cp.dao2[1], cp.period),
             cp,
             // mid stroke, chambers near half supply, the thesis's 80 bar pressure reference
-            inputs: [0.0, 0.0, 1e7, 1e7, 80e5],
+            inputs: [0.0, 0.0, 1e7, 1e7, 80e5, 0.0, 0.0, 0.0],
+            derivatives_given,
+            plant,
             out: [0.0; 2],
             t: 0.0,
             controller: None,
@@ -177,6 +187,42 @@ impl Model for ControllerFmu {
                 |m: &Self| m.inputs[4],
                 |m, x| m.inputs[4] = x,
             ),
+            real_input(
+                "dy_ref",
+                "Velocity of the position reference (used when reference_derivatives is true)",
+                "m/s",
+                0.0,
+                (None, None),
+                |m: &Self| m.inputs[5],
+                |m, x| m.inputs[5] = x,
+            ),
+            real_input(
+                "d2y_ref",
+                "Acceleration of the position reference (used when reference_derivatives is true)",
+                "m/s2",
+                0.0,
+                (None, None),
+                |m: &Self| m.inputs[6],
+                |m, x| m.inputs[6] = x,
+            ),
+            real_input(
+                "d3y_ref",
+                "Jerk of the position reference (used when reference_derivatives is true)",
+                "m/s3",
+                0.0,
+                (None, None),
+                |m: &Self| m.inputs[7],
+                |m, x| m.inputs[7] = x,
+            ),
+            boolean_parameter(
+                "reference_derivatives",
+                "true: the laws take the reference's velocity, acceleration and jerk from the inputs \
+                 dy_ref, d2y_ref, d3y_ref (a trajectory generator knows them exactly); false: a DAO2 \
+                 differentiator estimates velocity and acceleration from y_ref, with its lag, and the jerk is 0",
+                false,
+                |m: &Self| m.derivatives_given,
+                |m: &mut Self, on| m.derivatives_given = on,
+            ),
             real_output(
                 "u1",
                 "Command of SV1, saturated at +-10 V",
@@ -256,8 +302,9 @@ impl Model for ControllerFmu {
         ]
     }
 
-    fn instantiate(_resources: Option<&Path>) -> Result<Self, String> {
-        Ok(Self::fresh(ControllerParams::default()))
+    fn instantiate(resources: Option<&Path>) -> Result<Self, String> {
+        let plant = load_params(resources, super::bench::default_params())?;
+        Ok(Self::fresh(ControllerParams::default(), false, plant))
     }
 
     fn initialize(&mut self, start_time: f64) -> Result<(), String> {
@@ -265,11 +312,11 @@ impl Model for ControllerFmu {
         // parameters are final: build the law on the thesis bench's control model
         let mut cp = self.cp;
         cp.source = StateSource::Dao2;
-        *self = Self::fresh(cp);
+        *self = Self::fresh(cp, self.derivatives_given, self.plant.clone());
         self.inputs = inputs;
         self.reference.reset(inputs[0]);
         self.t = start_time;
-        self.controller = Some(cp.controller(&Params::default()));
+        self.controller = Some(cp.controller(&self.plant));
         self.refresh()
     }
 
@@ -290,10 +337,15 @@ impl Model for ControllerFmu {
             self.controller.clone(),
             self.reference.clone(),
         ));
-        let [y_ref, y, p1, p2, p_ref] = self.inputs;
-        let [_, vd, ad] = self.reference.update(y_ref);
+        let [y_ref, y, p1, p2, p_ref, dy, d2y, d3y] = self.inputs;
+        let estimated = self.reference.update(y_ref);
         let reference = Reference {
-            y: [y_ref, vd, ad, 0.0],
+            // the DAO2 on y_ref gives no jerk: the laws then run without that feedforward
+            y: if self.derivatives_given {
+                [y_ref, dy, d2y, d3y]
+            } else {
+                [y_ref, estimated[1], estimated[2], 0.0]
+            },
             p: [p_ref, 0.0],
         };
         let sensed = Measurement { y, p1, p2 };

@@ -18,7 +18,9 @@ use serde::{Deserialize, Serialize};
 
 use super::PRESSURE_INPUT;
 use super::{effect_switches, load_params, params_with, registry_parameters, HasParams};
-use crate::slave::{integer_parameter, real_input, real_output, Model, ModelInfo, VarDef};
+use crate::slave::{
+    integer_parameter, real_input, real_output, Model, ModelInfo, RealGetter, RealSetter, VarDef,
+};
 
 const EFFECTS: [Effect; 5] = [
     Effect::ManifoldVolume,
@@ -36,6 +38,9 @@ pub struct Snapshot {
     /// Q_A1, Q_B1, Q_A2, Q_B2, P1, P2
     inputs: [f64; 6],
     t: f64,
+    /// dQ_A1/dP_A1, dQ_B1/dP_B1, dQ_A2/dP_A2, dQ_B2/dP_B2 (zero in snapshots of before)
+    #[serde(default)]
+    sensitivities: [f64; 4],
 }
 
 pub struct ManifoldFmu {
@@ -84,11 +89,15 @@ impl ManifoldFmu {
             .ok_or_else(|| "no circuit".to_string())
     }
 
-    /// Network right-hand side; returns the chamber flows.
+    /// Network right-hand side; returns the chamber flows. Over a communication step
+    /// each valve port flow follows its node's pressure to first order,
+    /// Q + dQ/dP (p - p0), `linear` holding the sensitivities and the port pressures p0
+    /// at the step's start (all zero: the flows are held).
     fn derivatives(
         c: &Circuit,
         p: &Params,
         inputs: &[f64; 6],
+        linear: (&[f64; 4], &[f64; 4]),
         x: &[f64],
         dx: &mut [f64],
     ) -> [f64; 2] {
@@ -101,7 +110,9 @@ impl ManifoldFmu {
             chambers: [inputs[4], inputs[5]],
             tank: p.tank_pressure,
         };
-        let ports = [[inputs[0], inputs[1]], [inputs[2], inputs[3]]];
+        let (g, p0) = linear;
+        let q = |k: usize| inputs[k] + g[k] * (state.pressure(c.valve_ports[k / 2][k % 2]) - p0[k]);
+        let ports = [[q(0), q(1)], [q(2), q(3)]];
         let (dn, df) = dx.split_at_mut(nn);
         c.derivatives(&state, &ports, |q| oil_stiffness(&fluid, air, q), dn, df)
     }
@@ -152,6 +163,25 @@ impl Model for ManifoldFmu {
             |p| p.starts_with("manifold.") || p.starts_with("fluid.") || p == "tank_pressure",
             str::to_string,
         ));
+        // Appended last so that the value references above keep their numbers: the valves'
+        // dQ_*_dP_* outputs, with which the port flows follow the port-node pressures
+        // within a step (interface-Jacobian coupling, docs/cosim.md). 0 holds them.
+        fn get<const K: usize>(m: &ManifoldFmu) -> f64 {
+            m.s.sensitivities[K]
+        }
+        fn set<const K: usize>(m: &mut ManifoldFmu, x: f64) {
+            m.s.sensitivities[K] = x;
+        }
+        let inputs: [(&str, &str, RealGetter<Self>, RealSetter<Self>); 4] = [
+            ("dQ_A1_dP_A1", "SV1's dQ_A_dP_A", get::<0>, set::<0>),
+            ("dQ_B1_dP_B1", "SV1's dQ_B_dP_B", get::<1>, set::<1>),
+            ("dQ_A2_dP_A2", "SV2's dQ_A_dP_A", get::<2>, set::<2>),
+            ("dQ_B2_dP_B2", "SV2's dQ_B_dP_B", get::<3>, set::<3>),
+        ];
+        v.extend(inputs.into_iter().map(|(name, from, get, set)| {
+            let d = format!("Sensitivity of the port flow to the port pressure (from {from}); 0 holds the flow over a step");
+            real_input(name, &d, "m3/(s.Pa)", 0.0, (None, Some(0.0)), get, set)
+        }));
         v
     }
 
@@ -164,6 +194,7 @@ impl Model for ManifoldFmu {
                 x: vec![],
                 inputs: [0.0, 0.0, 0.0, 0.0, mid, mid],
                 t: 0.0,
+                sensitivities: [0.0; 4],
             },
             circuit: None,
             out: [0.0; 6],
@@ -181,7 +212,15 @@ impl Model for ManifoldFmu {
         self.circuit()?;
         let c = self.circuit.as_ref().ok_or("no circuit")?;
         let mut dx = vec![0.0; self.s.x.len()];
-        let q = Self::derivatives(c, &self.s.params, &self.s.inputs, &self.s.x, &mut dx);
+        let none = [0.0; 4];
+        let q = Self::derivatives(
+            c,
+            &self.s.params,
+            &self.s.inputs,
+            (&none, &none),
+            &self.s.x,
+            &mut dx,
+        );
         let nn = c.nodes.len();
         let state = NetworkState {
             nodes: &self.s.x[..nn],
@@ -209,9 +248,17 @@ impl Model for ManifoldFmu {
             };
             let (p, inputs) = (&self.s.params, self.s.inputs);
             let mut x = self.s.x.clone();
+            let state = NetworkState {
+                nodes: &x[..nn],
+                flows: &x[nn..],
+                chambers: [inputs[4], inputs[5]],
+                tank: p.tank_pressure,
+            };
+            let p0: [f64; 4] = std::array::from_fn(|k| state.pressure(c.valve_ports[k / 2][k % 2]));
+            let g = self.s.sensitivities;
             integrate(
                 |_t, x, dx| {
-                    Self::derivatives(c, p, &inputs, x, dx);
+                    Self::derivatives(c, p, &inputs, (&g, &p0), x, dx);
                 },
                 &mut x,
                 self.s.t,

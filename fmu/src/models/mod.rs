@@ -179,7 +179,7 @@ pub trait HasParams {
 }
 
 /// FMU names of the registry paths the issue fixes; the rest keep their dotted path.
-fn fmu_name(path: &str) -> &str {
+pub fn fmu_name(path: &str) -> &str {
     match path {
         "supply_pressure" => "P_supply",
         "tank_pressure" => "P_tank",

@@ -14,7 +14,7 @@ use super::{
     valve_model_from, valve_model_type, HasParams, VALVE_MODEL_TYPE,
 };
 use super::{COMMAND_INPUT, PRESSURE_INPUT};
-use crate::slave::{enum_parameter, real_input, real_output, Model, ModelInfo, VarDef};
+use crate::slave::{enum_parameter, real_input, real_output, Model, ModelInfo, RealGetter, VarDef};
 
 #[derive(Debug, Clone, Copy, Default, Serialize, Deserialize)]
 pub struct ValveInputs {
@@ -28,7 +28,8 @@ pub struct ServovalveFmu {
     x: Vec<f64>,
     inputs: ValveInputs,
     t: f64,
-    out: [f64; 3],
+    /// Q_A, Q_B, x_s, dQ_A/dP_A, dQ_B/dP_B
+    out: [f64; 5],
 }
 
 #[derive(Clone, Serialize, Deserialize)]
@@ -172,6 +173,30 @@ impl Model for ServovalveFmu {
             |p| p.starts_with("sv1.") || p == "fluid.temperature",
             |n| n.trim_start_matches("sv1.").to_string(),
         ));
+        // Appended last so that the value references above keep their numbers. A master
+        // hands these to the manifold (dQ_*_dP_* inputs) so that the stiff valve/port-node
+        // loop is closed inside the manifold's implicit solver (docs/cosim.md).
+        fn out<const K: usize>(m: &ServovalveFmu) -> f64 {
+            m.out[K]
+        }
+        let sensitivities: [(&str, &str, RealGetter<Self>); 2] = [
+            (
+                "dQ_A_dP_A",
+                "Sensitivity of Q_A to P_A (interface Jacobian, never positive)",
+                out::<3>,
+            ),
+            (
+                "dQ_B_dP_B",
+                "Sensitivity of Q_B to P_B (interface Jacobian, never positive)",
+                out::<4>,
+            ),
+        ];
+        for (name, description, get) in sensitivities {
+            v.push(
+                real_output(name, description, "m3/(s.Pa)", get)
+                    .depends_on(&["u", "P_P", "P_T", "P_A", "P_B"]),
+            );
+        }
         v
     }
 
@@ -187,7 +212,7 @@ impl Model for ServovalveFmu {
             valve: None,
             x: vec![],
             t: 0.0,
-            out: [0.0; 3],
+            out: [0.0; 5],
         })
     }
 
@@ -204,7 +229,18 @@ impl Model for ServovalveFmu {
         self.valve()?;
         let v = self.valve.as_deref().ok_or("no valve")?;
         let q = v.flows(u, &self.x, &ports);
-        self.out = [q.a, q.b, v.spool_position(u, &self.x)];
+        // central differences over 1 mbar: well inside the laminar core of the land
+        // law's square root, far above rounding at 200 bar
+        let dp = 100.0;
+        let at = |da: f64, db: f64| {
+            let mut p = ports;
+            p.a += da;
+            p.b += db;
+            v.flows(u, &self.x, &p)
+        };
+        let dqa = (at(dp, 0.0).a - at(-dp, 0.0).a) / (2.0 * dp);
+        let dqb = (at(0.0, dp).b - at(0.0, -dp).b) / (2.0 * dp);
+        self.out = [q.a, q.b, v.spool_position(u, &self.x), dqa, dqb];
         Ok(())
     }
 

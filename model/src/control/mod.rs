@@ -16,6 +16,7 @@ pub mod trajectory;
 
 use crate::bench::{Inputs, Outputs, Simulation};
 use crate::effects::Effect;
+use crate::sensors::DelayLine;
 use crate::solver::SolverError;
 
 /// Sampling period of the bench's controller board (s), section 4.4.
@@ -25,11 +26,22 @@ pub const SAMPLE_PERIOD: f64 = 1e-3;
 pub const COMMAND_LIMIT: f64 = 10.0;
 
 /// What the controller receives at a sample.
-#[derive(Debug, Clone, Copy, PartialEq)]
+#[derive(Debug, Clone, Copy, PartialEq, Default, serde::Serialize, serde::Deserialize)]
 pub struct Measurement {
     pub y: f64,
     pub p1: f64,
     pub p2: f64,
+}
+
+impl Measurement {
+    /// The sensed signals of the bench's outputs.
+    pub fn of(o: &Outputs) -> Self {
+        Measurement {
+            y: o.y,
+            p1: o.p1,
+            p2: o.p2,
+        }
+    }
 }
 
 /// A discrete-time controller: at each sample, the measurement and the reference in,
@@ -145,32 +157,21 @@ pub fn run_loop(
     };
     let compute = timing.computation_delay.clamp(0.0, period);
     let mut trace = Vec::new();
-    // measurement history (time, value) for the delayed sensor
-    let mut history: Vec<(f64, Measurement)> = Vec::new();
-    let measure = |o: &Outputs| Measurement {
-        y: o.y,
-        p1: o.p1,
-        p2: o.p2,
-    };
-    history.push((sim.time(), measure(&sim.outputs())));
+    let mut sensed = DelayLine::new(delay, sim.time(), Measurement::of(&sim.outputs()));
     let n = ((t_end - sim.time()) / period).round() as usize;
     let t0 = sim.time();
     let f_ext = sim.inputs().f_ext;
     let mut applied = [sim.inputs().u1, sim.inputs().u2];
     for k in 0..n {
         let t_k = t0 + k as f64 * period;
-        let m = delayed(&history, t_k - delay);
+        let m = sensed.read(t_k);
         let u = decide(t_k, &m, &sim.outputs());
         let substeps = timing.substeps.max(1);
         let mut points: Vec<f64> = (1..=substeps)
             .map(|j| t_k + period * j as f64 / substeps as f64)
             .collect();
-        // the instant a delayed sensor will read, so interpolation stays exact in time
-        if delay > 0.0 {
-            let t_read = t_k + period - delay.rem_euclid(period);
-            if t_read > t_k && t_read < t_k + period {
-                points.push(t_read);
-            }
+        if let Some(t_read) = sensed.read_instant_within(t_k, t_k + period) {
+            points.push(t_read);
         }
         let t_act = t_k + compute;
         if compute > 0.0 && t_act < t_k + period {
@@ -191,7 +192,7 @@ pub fn run_loop(
                 applied = u;
             }
             let out = sim.outputs();
-            history.push((t, measure(&out)));
+            sensed.record(t, Measurement::of(&out));
             trace.push(Sample {
                 t,
                 reference: reference(t),
@@ -199,34 +200,9 @@ pub fn run_loop(
                 out,
             });
         }
-        // keep only what a delayed read can still need
-        let keep_from = t_k - delay - 2.0 * period;
-        let drop = history.partition_point(|(t, _)| *t < keep_from);
-        if drop > 1 {
-            history.drain(..drop - 1);
-        }
+        sensed.forget_before(t_k - 2.0 * period);
     }
     Ok(trace)
-}
-
-/// Linear interpolation of the measurement history at time t (held before the start).
-fn delayed(history: &[(f64, Measurement)], t: f64) -> Measurement {
-    let i = history.partition_point(|(ti, _)| *ti <= t);
-    if i == 0 {
-        return history[0].1;
-    }
-    if i == history.len() {
-        return history[i - 1].1;
-    }
-    let (ta, a) = history[i - 1];
-    let (tb, b) = history[i];
-    let w = (t - ta) / (tb - ta);
-    let lerp = |x: f64, y: f64| x + w * (y - x);
-    Measurement {
-        y: lerp(a.y, b.y),
-        p1: lerp(a.p1, b.p1),
-        p2: lerp(a.p2, b.p2),
-    }
 }
 
 /// 95 % response time of a step recorded in `trace` that starts at `t_step` from

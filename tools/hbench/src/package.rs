@@ -127,5 +127,7 @@ pub fn run(
         }
         println!("{}", path.display());
     }
+    // the same FMUs wired into the bench as an SSP 1.0 system (hbench cosim, OMSimulator)
+    println!("{}", crate::cosim::ssp::write_package(out)?.display());
     Ok(())
 }

@@ -1,0 +1,241 @@
+#!/usr/bin/env python3
+"""The HydroBench bench co-simulated from its component FMUs with fmpy, as bench.ssp wires
+them: two servovalve.fmu instances, manifold.fmu and actuator.fmu, stepped at a fixed
+communication step in Gauss-Seidel (default) or Jacobi order, under the thesis's 1 kHz
+proportional control u1 = -u2 = Kp (y_ref - y) (mode 1: u2 = 0), the same algorithm as
+`hbench cosim` (tools/hbench/src/cosim/).
+
+    python tools/fmpy/cosim.py --ssp target/fmu/bench.ssp --reference out/cosim/reference_move.csv
+                               [--mode 3] [--step 1e-4] [--order gauss-seidel] [--out trace.csv]
+                               [--replace sv2=my_valve.fmu]
+
+The reference y_ref(t) at the control instants comes from `hbench cosim`
+(reference_<experiment>.csv), which computes the 7th-order move in Rust; its first
+value is the initial piston position. Writes time, y_ref, y, P1, P2 (SI) at the control
+instants.
+
+Swapping a component: `--replace NAME=path.fmu` loads your FMU in place of the packaged one
+(it must have the same connector names), or edit USER_COMPONENTS below to put Python code
+there: any object with the methods of `Component` (set, get, step) will do.
+"""
+from __future__ import annotations
+
+import argparse
+import csv
+import tempfile
+import zipfile
+from pathlib import Path
+from xml.etree import ElementTree
+
+from fmpy import extract, read_model_description
+from fmpy.fmi2 import FMU2Slave
+
+SSD = "{http://ssp-standard.org/SSP1/SystemStructureDescription}"
+SSV = "{http://ssp-standard.org/SSP1/SystemStructureParameterValues}"
+
+CONTROL_PERIOD = 1e-3  # s, the thesis bench's sampling period
+KP = 1169.0  # V/m
+U_MAX = 10.0  # V
+
+
+class Component:
+    """One FMU instance: set and get Real values by name, step."""
+
+    def __init__(self, name: str, fmu_path: str, tmp: str):
+        md = read_model_description(fmu_path)
+        self.name = name
+        self.vars = {v.name: v for v in md.modelVariables}
+        self.fmu = FMU2Slave(guid=md.guid, unzipDirectory=extract(fmu_path, tmp),
+                             modelIdentifier=md.coSimulation.modelIdentifier, instanceName=name)
+        self.fmu.instantiate()
+        self.t = 0.0
+
+    def has(self, name: str) -> bool:
+        return name in self.vars
+
+    def set_parameter(self, name: str, value):
+        v = self.vars[name]
+        if v.type == "Boolean":
+            self.fmu.setBoolean([v.valueReference], [bool(value)])
+        elif v.type in ("Integer", "Enumeration"):
+            self.fmu.setInteger([v.valueReference], [int(value)])
+        else:
+            self.fmu.setReal([v.valueReference], [float(value)])
+
+    def initialize(self):
+        self.fmu.setupExperiment(startTime=0.0)
+        self.fmu.enterInitializationMode()
+
+    def ready(self):
+        self.fmu.exitInitializationMode()
+
+    def set(self, names: list[str], values: list[float]):
+        self.fmu.setReal([self.vars[n].valueReference for n in names], list(values))
+
+    def get(self, names: list[str]) -> list[float]:
+        return self.fmu.getReal([self.vars[n].valueReference for n in names])
+
+    def step(self, h: float):
+        self.fmu.doStep(currentCommunicationPoint=self.t, communicationStepSize=h)
+        self.t += h
+
+    def free(self):
+        self.fmu.terminate()
+        self.fmu.freeInstance()
+
+
+# --------------------------------------------------------------------------------------
+# >>> YOUR COMPONENT GOES HERE <<<
+# Map a component name of bench.ssp (sv1, sv2, manifold, actuator) to a factory
+# `f(name, fmu_path, tmp) -> object` with the methods of Component: has, set_parameter,
+# initialize, ready, set, get, step, free. The object receives the inputs its SSD
+# connections name (e.g. a servovalve: u, P_A, P_B; outputs Q_A, Q_B, dQ_A_dP_A,
+# dQ_B_dP_B) and must give the outputs the others read. Example: your own valve FMU,
+#     USER_COMPONENTS = {"sv2": lambda name, _path, tmp: Component(name, "my_valve.fmu", tmp)}
+# or a Python class of yours. Empty: every component is the packaged FMU.
+USER_COMPONENTS: dict = {}
+# --------------------------------------------------------------------------------------
+
+
+def read_system(ssp: Path, tmp: str):
+    """Components (name, FMU path inside the package, parameters) and connections."""
+    with zipfile.ZipFile(ssp) as z:
+        z.extractall(tmp)
+    root = ElementTree.parse(Path(tmp) / "SystemStructure.ssd").getroot()
+    system = root.find(f"{SSD}System")
+    components = []
+    for c in system.find(f"{SSD}Elements").findall(f"{SSD}Component"):
+        params = {}
+        for p in c.iter(f"{SSV}Parameter"):
+            (value,) = list(p)
+            kind = value.tag.replace(SSV, "")
+            text = value.get("value")
+            params[p.get("name")] = {"Real": float, "Integer": int}.get(
+                kind, lambda s: s in ("true", "1"))(text)
+        components.append((c.get("name"), str(Path(tmp) / c.get("source")), params))
+    connections = [(c.get("startElement"), c.get("startConnector"),
+                    c.get("endElement"), c.get("endConnector"))
+                   for c in system.find(f"{SSD}Connections").findall(f"{SSD}Connection")]
+    return components, connections
+
+
+class Master:
+    """The fixed-step master: each component reads its inputs from its sources' outputs,
+    all before anyone steps (Jacobi) or each just before it steps (Gauss-Seidel, in the
+    SSD's order)."""
+
+    def __init__(self, ssp: Path, tmp: str, mode: int, y0: float, replace: dict[str, str]):
+        components, connections = read_system(ssp, tmp)
+        self.comps = []
+        for name, path, params in components:
+            make = USER_COMPONENTS.get(name, Component)
+            c = make(name, replace.get(name, path), f"{tmp}/{name}")
+            for n, v in params.items():
+                c.set_parameter(n, v)
+            for n, v in (("mode", mode), ("y0", y0)):
+                if c.has(n):
+                    c.set_parameter(n, v)
+            self.comps.append(c)
+        index = {c.name: k for k, c in enumerate(self.comps)}
+        # links[k]: {source index: ([source outputs], [inputs of k])}
+        self.links = [dict() for _ in self.comps]
+        self.inputs, self.outputs = {}, {}
+        for a, out, b, inp in connections:
+            if a and b:
+                outs, ins = self.links[index[b]].setdefault(index[a], ([], []))
+                outs.append(out)
+                ins.append(inp)
+            elif b:
+                self.inputs.setdefault(out, []).append((index[b], inp))
+            else:
+                self.outputs[inp] = (index[a], out)
+        for c in self.comps:
+            c.initialize()
+        for _ in range(3):  # consistent initial inputs, as hbench does
+            for k in range(len(self.comps)):
+                self.pull(k)
+        for c in self.comps:
+            c.ready()
+
+    def pull(self, k: int):
+        for src, (outs, ins) in self.links[k].items():
+            self.comps[k].set(ins, self.comps[src].get(outs))
+
+    def set_input(self, name: str, x: float):
+        for k, inp in self.inputs[name]:
+            self.comps[k].set([inp], [x])
+
+    def output(self, name: str) -> float:
+        k, out = self.outputs[name]
+        return self.comps[k].get([out])[0]
+
+    def step(self, h: float, order: str):
+        if order == "jacobi":
+            for k in range(len(self.comps)):
+                self.pull(k)
+            for c in self.comps:
+                c.step(h)
+        else:
+            for k, c in enumerate(self.comps):
+                self.pull(k)
+                c.step(h)
+
+    def free(self):
+        for c in self.comps:
+            c.free()
+
+
+def read_reference(path: Path) -> list[tuple[float, float]]:
+    with open(path, newline="") as f:
+        return [(float(r["time"]), float(r["y_ref"])) for r in csv.DictReader(f)]
+
+
+def simulate(ssp: Path, reference: list[tuple[float, float]], mode: int = 3, step: float = 1e-4,
+             order: str = "gauss-seidel", replace: dict[str, str] | None = None):
+    """Rows (t, y_ref, y, P1, P2) at the control instants."""
+    sub = max(1, round(CONTROL_PERIOD / step))
+    h = CONTROL_PERIOD / sub
+    rows = []
+    with tempfile.TemporaryDirectory() as tmp:
+        m = Master(ssp, tmp, mode, reference[0][1], replace or {})
+        try:
+            for k, (t, y_ref) in enumerate(reference):
+                y, p1, p2 = m.output("y"), m.output("P1"), m.output("P2")
+                rows.append((t, y_ref, y, p1, p2))
+                if k == len(reference) - 1:
+                    break
+                u = min(U_MAX, max(-U_MAX, KP * (y_ref - y)))
+                m.set_input("u1", u)
+                # mode 1 drives the actuator with SV1 alone; SV2 stays connected, at null
+                m.set_input("u2", 0.0 if mode == 1 else -u)
+                for _ in range(sub):
+                    m.step(h, order)
+        finally:
+            m.free()
+    return rows
+
+
+def main():
+    ap = argparse.ArgumentParser(description=__doc__.split("\n\n")[0])
+    ap.add_argument("--ssp", default="target/fmu/bench.ssp")
+    ap.add_argument("--reference", required=True, help="reference_<experiment>.csv of hbench cosim")
+    ap.add_argument("--mode", type=int, default=3, choices=(1, 2, 3))
+    ap.add_argument("--step", type=float, default=1e-4, help="communication step (s)")
+    ap.add_argument("--order", default="gauss-seidel", choices=("gauss-seidel", "jacobi"))
+    ap.add_argument("--replace", action="append", default=[], metavar="NAME=FMU",
+                    help="load this FMU in place of a component of the package")
+    ap.add_argument("--out", default="out/cosim/fmpy_trace.csv")
+    a = ap.parse_args()
+    replace = dict(r.split("=", 1) for r in a.replace)
+    rows = simulate(Path(a.ssp), read_reference(Path(a.reference)), a.mode, a.step, a.order,
+                    replace)
+    Path(a.out).parent.mkdir(parents=True, exist_ok=True)
+    with open(a.out, "w", newline="") as f:
+        w = csv.writer(f)
+        w.writerow(["time", "y_ref", "y", "P1", "P2"])
+        w.writerows(rows)
+    print(f"{a.out}: y(end) = {rows[-1][2] * 1e3:.3f} mm")
+
+
+if __name__ == "__main__":
+    main()
