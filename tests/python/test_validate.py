@@ -17,6 +17,14 @@ EFFECTS = [
     "valve_asymmetry", "sensor_delay", "payload", "temperature",
 ]
 
+# the chamber port's coupling terms (docs/cosim.md): the actuator's chamber terms feed
+# the manifold, the manifold's passage terms feed the actuator
+CHAMBER_TERMS = {f"{n}{k}{s}": u for k in "12"
+                 for n, s, u in (("Q", "_displaced", "m3/s"), ("V", "", "m3"), ("beta", "", "Pa"))}
+PASSAGE_TERMS = {f"{n}{k}{s}": u for k in "12"
+                 for n, s, u in (("P", "_drive", "Pa"), ("L", "", "kg/m4"), ("V", "_drive", "m3"),
+                                 ("beta", "_drive", "Pa"), ("Q", "_feed", "m3/s"))}
+
 # name -> unit (None: no unit) per FMU, as issue 4 names them
 REQUIRED = {
     "servovalve": {
@@ -28,14 +36,21 @@ REQUIRED = {
         "input": {"Q_A1": "m3/s", "Q_B1": "m3/s", "Q_A2": "m3/s", "Q_B2": "m3/s",
                   "P1": "Pa", "P2": "Pa",
                   # the valves' flow sensitivities, for stable co-simulation (docs/cosim.md)
-                  **{f"dQ_{p}{k}_dP_{p}{k}": "m3/(s.Pa)" for p in "AB" for k in "12"}},
+                  **{f"dQ_{p}{k}_dP_{p}{k}": "m3/(s.Pa)" for p in "AB" for k in "12"},
+                  # the actuator's chamber terms, for the chamber port (docs/cosim.md)
+                  **CHAMBER_TERMS},
         "output": {"P_A1": "Pa", "P_B1": "Pa", "P_A2": "Pa", "P_B2": "Pa",
-                   "Q1": "m3/s", "Q2": "m3/s"},
+                   "Q1": "m3/s", "Q2": "m3/s",
+                   # the passages at the chambers and the nodes behind them (docs/cosim.md)
+                   **PASSAGE_TERMS},
         "parameter": {"mode": None},
     },
     "actuator": {
-        "input": {"Q1": "m3/s", "Q2": "m3/s", "F_ext": "N"},
-        "output": {"P1": "Pa", "P2": "Pa", "y": "m", "v": "m/s", "a": "m/s2"},
+        "input": {"Q1": "m3/s", "Q2": "m3/s", "F_ext": "N",
+                  # the manifold's passage terms, for the chamber port (docs/cosim.md)
+                  **PASSAGE_TERMS},
+        "output": {"P1": "Pa", "P2": "Pa", "y": "m", "v": "m/s", "a": "m/s2",
+                   **CHAMBER_TERMS},
         "parameter": {},
     },
     "bench": {

@@ -2,12 +2,14 @@
 """The HydroBench bench co-simulated from its component FMUs with fmpy, as bench.ssp wires
 them: two servovalve.fmu instances, manifold.fmu and actuator.fmu, stepped at a fixed
 communication step in Gauss-Seidel (default) or Jacobi order, under the thesis's 1 kHz
-proportional control u1 = -u2 = Kp (y_ref - y) (mode 1: u2 = 0), the same algorithm as
-`hbench cosim` (tools/hbench/src/cosim/).
+proportional control u1 = -u2 = Kp (y_ref - y) (mode 1: u2 = 0), computed here or, with
+--controller, by controller.fmu inside the system (the package's ClosedLoop variants,
+sampled at 1 ms while the plant steps at --step): the same algorithm as `hbench cosim`
+(tools/hbench/src/cosim/).
 
     python tools/fmpy/cosim.py --ssp target/fmu/bench.ssp --reference out/cosim/reference_move.csv
                                [--mode 3] [--step 1e-4] [--order gauss-seidel] [--out trace.csv]
-                               [--replace sv2=my_valve.fmu]
+                               [--replace sv2=my_valve.fmu] [--controller]
 
 The reference y_ref(t) at the control instants comes from `hbench cosim`
 (reference_<experiment>.csv), which computes the 7th-order move in Rust; its first
@@ -34,6 +36,7 @@ SSD = "{http://ssp-standard.org/SSP1/SystemStructureDescription}"
 SSV = "{http://ssp-standard.org/SSP1/SystemStructureParameterValues}"
 
 CONTROL_PERIOD = 1e-3  # s, the thesis bench's sampling period
+CONTROLLER = "controller"  # the controller.fmu instance of the closed-loop variants
 KP = 1169.0  # V/m
 U_MAX = 10.0  # V
 
@@ -97,11 +100,12 @@ USER_COMPONENTS: dict = {}
 # --------------------------------------------------------------------------------------
 
 
-def read_system(ssp: Path, tmp: str):
-    """Components (name, FMU path inside the package, parameters) and connections."""
+def read_system(ssp: Path, tmp: str, ssd: str = "SystemStructure.ssd"):
+    """Components (name, FMU path inside the package, parameters) and connections of the
+    package's SSD `ssd` (the default system, or a variant such as ClosedLoop.ssd)."""
     with zipfile.ZipFile(ssp) as z:
         z.extractall(tmp)
-    root = ElementTree.parse(Path(tmp) / "SystemStructure.ssd").getroot()
+    root = ElementTree.parse(Path(tmp) / ssd).getroot()
     system = root.find(f"{SSD}System")
     components = []
     for c in system.find(f"{SSD}Elements").findall(f"{SSD}Component"):
@@ -124,8 +128,9 @@ class Master:
     all before anyone steps (Jacobi) or each just before it steps (Gauss-Seidel, in the
     SSD's order)."""
 
-    def __init__(self, ssp: Path, tmp: str, mode: int, y0: float, replace: dict[str, str]):
-        components, connections = read_system(ssp, tmp)
+    def __init__(self, ssp: Path, tmp: str, mode: int, y0: float, replace: dict[str, str],
+                 ssd: str = "SystemStructure.ssd"):
+        components, connections = read_system(ssp, tmp, ssd)
         self.comps = []
         for name, path, params in components:
             make = USER_COMPONENTS.get(name, Component)
@@ -156,6 +161,10 @@ class Master:
                 self.pull(k)
         for c in self.comps:
             c.ready()
+        # multi-rate: the controller of the closed-loop variants samples at its own period
+        self.periods = {k: CONTROL_PERIOD for k, c in enumerate(self.comps)
+                        if c.name == CONTROLLER}
+        self.t = 0.0
 
     def pull(self, k: int):
         for src, (outs, ins) in self.links[k].items():
@@ -170,15 +179,26 @@ class Master:
         return self.comps[k].get([out])[0]
 
     def step(self, h: float, order: str):
+        # a sampled component whose period begins now reads its inputs first (its
+        # command depends on them), steps when its period is over and holds in between
+        eps = 1e-9 * h
+        for k in self.periods:
+            if abs(self.comps[k].t - self.t) < eps:
+                self.pull(k)
+        plant = [k for k in range(len(self.comps)) if k not in self.periods]
         if order == "jacobi":
-            for k in range(len(self.comps)):
+            for k in plant:
                 self.pull(k)
-            for c in self.comps:
-                c.step(h)
+            for k in plant:
+                self.comps[k].step(h)
         else:
-            for k, c in enumerate(self.comps):
+            for k in plant:
                 self.pull(k)
-                c.step(h)
+                self.comps[k].step(h)
+        self.t += h
+        for k, period in self.periods.items():
+            if self.comps[k].t + period <= self.t + eps:
+                self.comps[k].step(period)
 
     def free(self):
         for c in self.comps:
@@ -191,23 +211,31 @@ def read_reference(path: Path) -> list[tuple[float, float]]:
 
 
 def simulate(ssp: Path, reference: list[tuple[float, float]], mode: int = 3, step: float = 1e-4,
-             order: str = "gauss-seidel", replace: dict[str, str] | None = None):
-    """Rows (t, y_ref, y, P1, P2) at the control instants."""
+             order: str = "gauss-seidel", replace: dict[str, str] | None = None,
+             controller: bool = False):
+    """Rows (t, y_ref, y, P1, P2) at the control instants. `controller`: the package's
+    closed-loop variant, controller.fmu in the system, instead of the law computed here."""
     sub = max(1, round(CONTROL_PERIOD / step))
     h = CONTROL_PERIOD / sub
     rows = []
+    ssd = "SystemStructure.ssd"
+    if controller:
+        ssd = "ClosedLoopMode1.ssd" if mode == 1 else "ClosedLoop.ssd"
     with tempfile.TemporaryDirectory() as tmp:
-        m = Master(ssp, tmp, mode, reference[0][1], replace or {})
+        m = Master(ssp, tmp, mode, reference[0][1], replace or {}, ssd)
         try:
             for k, (t, y_ref) in enumerate(reference):
                 y, p1, p2 = m.output("y"), m.output("P1"), m.output("P2")
                 rows.append((t, y_ref, y, p1, p2))
                 if k == len(reference) - 1:
                     break
-                u = min(U_MAX, max(-U_MAX, KP * (y_ref - y)))
-                m.set_input("u1", u)
-                # mode 1 drives the actuator with SV1 alone; SV2 stays connected, at null
-                m.set_input("u2", 0.0 if mode == 1 else -u)
+                if controller:
+                    m.set_input("y_ref", y_ref)  # controller.fmu samples y itself
+                else:
+                    u = min(U_MAX, max(-U_MAX, KP * (y_ref - y)))
+                    m.set_input("u1", u)
+                    # mode 1 drives the actuator with SV1 alone; SV2 stays at null
+                    m.set_input("u2", 0.0 if mode == 1 else -u)
                 for _ in range(sub):
                     m.step(h, order)
         finally:
@@ -224,11 +252,13 @@ def main():
     ap.add_argument("--order", default="gauss-seidel", choices=("gauss-seidel", "jacobi"))
     ap.add_argument("--replace", action="append", default=[], metavar="NAME=FMU",
                     help="load this FMU in place of a component of the package")
+    ap.add_argument("--controller", action="store_true",
+                    help="controller.fmu in the system (the package's ClosedLoop variants)")
     ap.add_argument("--out", default="out/cosim/fmpy_trace.csv")
     a = ap.parse_args()
     replace = dict(r.split("=", 1) for r in a.replace)
     rows = simulate(Path(a.ssp), read_reference(Path(a.reference)), a.mode, a.step, a.order,
-                    replace)
+                    replace, a.controller)
     Path(a.out).parent.mkdir(parents=True, exist_ok=True)
     with open(a.out, "w", newline="") as f:
         w = csv.writer(f)

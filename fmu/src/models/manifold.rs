@@ -10,12 +10,13 @@ use std::path::Path;
 
 use hbmodel::actuator::{fluid_in_use, oil_stiffness};
 use hbmodel::effects::Effect;
-use hbmodel::manifold::{Circuit, NetworkState};
+use hbmodel::manifold::{Circuit, NetworkState, Port};
 use hbmodel::solver::{integrate, SolverStats, Tolerances};
 use hbmodel::Params;
 use modeldesc::DefaultExperiment;
 use serde::{Deserialize, Serialize};
 
+use super::actuator::{port_inputs, CHAMBER_OUTPUTS, PASSAGE_INPUTS};
 use super::PRESSURE_INPUT;
 use super::{effect_switches, load_params, params_with, registry_parameters, HasParams};
 use crate::slave::{
@@ -41,13 +42,18 @@ pub struct Snapshot {
     /// dQ_A1/dP_A1, dQ_B1/dP_B1, dQ_A2/dP_A2, dQ_B2/dP_B2 (zero in snapshots of before)
     #[serde(default)]
     sensitivities: [f64; 4],
+    /// Q1_displaced, Q2_displaced, V1, V2, beta1, beta2 of the actuator (zero in
+    /// snapshots of before: the chamber pressures are held over a step)
+    #[serde(default)]
+    chambers: [f64; 6],
 }
 
 pub struct ManifoldFmu {
     s: Snapshot,
     circuit: Option<Circuit>,
-    /// P_A1, P_B1, P_A2, P_B2, Q1, Q2
-    out: [f64; 6],
+    /// P_A1, P_B1, P_A2, P_B2, Q1, Q2, P1_drive, P2_drive, L1, L2, V1_drive, V2_drive,
+    /// beta1_drive, beta2_drive, Q1_feed, Q2_feed
+    out: [f64; 16],
 }
 
 /// Built-in parameters: the chapter-3 network (volumes, inertia, losses) in mode 3.
@@ -89,14 +95,15 @@ impl ManifoldFmu {
             .ok_or_else(|| "no circuit".to_string())
     }
 
-    /// Network right-hand side; returns the chamber flows. Over a communication step
-    /// each valve port flow follows its node's pressure to first order,
-    /// Q + dQ/dP (p - p0), `linear` holding the sensitivities and the port pressures p0
-    /// at the step's start (all zero: the flows are held).
+    /// Network right-hand side for the chamber pressures `chambers`; returns the chamber
+    /// flows. Over a communication step each valve port flow follows its node's pressure
+    /// to first order, Q + dQ/dP (p - p0), `linear` holding the sensitivities and the
+    /// port pressures p0 at the step's start (all zero: the flows are held).
     fn derivatives(
         c: &Circuit,
         p: &Params,
         inputs: &[f64; 6],
+        chambers: [f64; 2],
         linear: (&[f64; 4], &[f64; 4]),
         x: &[f64],
         dx: &mut [f64],
@@ -107,7 +114,7 @@ impl ManifoldFmu {
         let state = NetworkState {
             nodes: &x[..nn],
             flows: &x[nn..],
-            chambers: [inputs[4], inputs[5]],
+            chambers,
             tank: p.tank_pressure,
         };
         let (g, p0) = linear;
@@ -182,6 +189,42 @@ impl Model for ManifoldFmu {
             let d = format!("Sensitivity of the port flow to the port pressure (from {from}); 0 holds the flow over a step");
             real_input(name, &d, "m3/(s.Pa)", 0.0, (None, Some(0.0)), get, set)
         }));
+        // Appended after those, for the chamber port (docs/cosim.md): each side of the
+        // passage/chamber loop carries the other's element over a step. The actuator's
+        // chamber terms let this manifold carry the chamber pressures,
+        // P_i' = beta_i/V_i (Q_i - Qi_displaced) (V_i 0, the default, holds P_i); the
+        // passage terms let the actuator carry the chamber flows. Names and descriptions
+        // are the actuator's, so that the two ends of each connection agree.
+        fn chamber<const K: usize>(m: &ManifoldFmu) -> f64 {
+            m.s.chambers[K]
+        }
+        fn set_chamber<const K: usize>(m: &mut ManifoldFmu, x: f64) {
+            m.s.chambers[K] = x;
+        }
+        let access: [(RealGetter<Self>, RealSetter<Self>); 6] = [
+            (chamber::<0>, set_chamber::<0>),
+            (chamber::<1>, set_chamber::<1>),
+            (chamber::<2>, set_chamber::<2>),
+            (chamber::<3>, set_chamber::<3>),
+            (chamber::<4>, set_chamber::<4>),
+            (chamber::<5>, set_chamber::<5>),
+        ];
+        v.extend(port_inputs(&CHAMBER_OUTPUTS, access));
+        fn out<const K: usize>(m: &ManifoldFmu) -> f64 {
+            m.out[K]
+        }
+        let getters: [RealGetter<Self>; 10] = [
+            out::<6>, out::<7>, out::<8>, out::<9>, out::<10>, out::<11>, out::<12>, out::<13>,
+            out::<14>, out::<15>,
+        ];
+        v.extend(
+            PASSAGE_INPUTS
+                .iter()
+                .zip(getters)
+                .map(|(&(name, d, unit), get)| {
+                    real_output(name, d, unit, get).depends_on(&["P1", "P2"])
+                }),
+        );
         v
     }
 
@@ -195,9 +238,10 @@ impl Model for ManifoldFmu {
                 inputs: [0.0, 0.0, 0.0, 0.0, mid, mid],
                 t: 0.0,
                 sensitivities: [0.0; 4],
+                chambers: [0.0; 6],
             },
             circuit: None,
-            out: [0.0; 6],
+            out: [0.0; 16],
         })
     }
 
@@ -213,10 +257,12 @@ impl Model for ManifoldFmu {
         let c = self.circuit.as_ref().ok_or("no circuit")?;
         let mut dx = vec![0.0; self.s.x.len()];
         let none = [0.0; 4];
+        let chambers = [self.s.inputs[4], self.s.inputs[5]];
         let q = Self::derivatives(
             c,
             &self.s.params,
             &self.s.inputs,
+            chambers,
             (&none, &none),
             &self.s.x,
             &mut dx,
@@ -225,11 +271,62 @@ impl Model for ManifoldFmu {
         let state = NetworkState {
             nodes: &self.s.x[..nn],
             flows: &self.s.x[nn..],
-            chambers: [self.s.inputs[4], self.s.inputs[5]],
+            chambers,
             tank: self.s.params.tank_pressure,
         };
         let pr = |v: usize, k: usize| state.pressure(c.valve_ports[v][k]);
-        self.out = [pr(0, 0), pr(0, 1), pr(1, 0), pr(1, 1), q[0], q[1]];
+        // The passages at each chamber as one driving pressure behind one inertance: a
+        // passage flow counts into a chamber it ends at and out of one it starts from,
+        // and either way its rate falls by 1/inertance per pascal of chamber pressure;
+        // in parallel, L = 1 / sum(1/L_k) and P_drive = P + L dQ/dt. With a single
+        // passage (every mode of the network: N-V), the node behind it goes along: its
+        // pressure follows the passage flow within a step, p' = beta/V (Q_feed - Q),
+        // stiffer than the chamber by its smaller volume, so it cannot be held.
+        let (mut rate, mut admittance, mut count) = ([0.0; 2], [0.0; 2], [0; 2]);
+        let mut node = [None; 2];
+        for (pass, d) in c.passages.iter().zip(&dx[nn..]) {
+            for (end, other, sign) in [(pass.to, pass.from, 1.0), (pass.from, pass.to, -1.0)] {
+                if let Port::Chamber(ch) = end {
+                    rate[ch] += sign * d;
+                    admittance[ch] += 1.0 / pass.inertance;
+                    count[ch] += 1;
+                    if let Port::Node(k) = other {
+                        node[ch] = Some(k);
+                    }
+                }
+            }
+        }
+        let l = admittance.map(|a| if a > 0.0 { 1.0 / a } else { 0.0 });
+        let drive: [f64; 2] = std::array::from_fn(|ch| chambers[ch] + l[ch] * rate[ch]);
+        let fluid = fluid_in_use(&self.s.params);
+        let air = self.s.params.has(Effect::EntrainedAir);
+        // (volume, bulk modulus, flow fed into the node by all but the chamber's passage)
+        let behind: [(f64, f64, f64); 2] = std::array::from_fn(|ch| match node[ch] {
+            Some(k) if count[ch] == 1 => {
+                let (v, b) = (c.nodes[k].volume, oil_stiffness(&fluid, air, self.s.x[k]));
+                // dp/dt = b/V (Q_feed - Q_ch)
+                (v, b, dx[k] * v / b + q[ch])
+            }
+            _ => (0.0, 0.0, 0.0),
+        });
+        self.out = [
+            pr(0, 0),
+            pr(0, 1),
+            pr(1, 0),
+            pr(1, 1),
+            q[0],
+            q[1],
+            drive[0],
+            drive[1],
+            l[0],
+            l[1],
+            behind[0].0,
+            behind[1].0,
+            behind[0].1,
+            behind[1].1,
+            behind[0].2,
+            behind[1].2,
+        ];
         Ok(())
     }
 
@@ -240,12 +337,8 @@ impl Model for ManifoldFmu {
         if n > 0 {
             let nn = c.nodes.len();
             let f = (self.s.params.solver.rtol / 1e-6).min(1.0);
-            let atol: Vec<f64> = (0..n).map(|k| if k < nn { f } else { 1e-8 * f }).collect();
-            let scale: Vec<f64> = (0..n).map(|k| if k < nn { 1e6 } else { 1e-5 }).collect();
-            let tol = Tolerances {
-                rtol: self.s.params.solver.rtol,
-                atol,
-            };
+            let mut atol: Vec<f64> = (0..n).map(|k| if k < nn { f } else { 1e-8 * f }).collect();
+            let mut scale: Vec<f64> = (0..n).map(|k| if k < nn { 1e6 } else { 1e-5 }).collect();
             let (p, inputs) = (&self.s.params, self.s.inputs);
             let mut x = self.s.x.clone();
             let state = NetworkState {
@@ -256,9 +349,35 @@ impl Model for ManifoldFmu {
             };
             let p0: [f64; 4] = std::array::from_fn(|k| state.pressure(c.valve_ports[k / 2][k % 2]));
             let g = self.s.sensitivities;
+            // With the actuator's chamber terms connected, the chamber pressures become
+            // states of this step, P_i' = K_i (Q_i - Qi_displaced): the passage flows then
+            // meet the pressure their own inflow builds instead of a held one, which closes
+            // the passage/chamber loop (near 780 Hz) within the step (docs/cosim.md).
+            let [qd1, qd2, v1, v2, b1, b2] = self.s.chambers;
+            let stiffness = |b: f64, v: f64| if v > 0.0 { b / v } else { 0.0 };
+            let (k1, k2) = (stiffness(b1, v1), stiffness(b2, v2));
+            let carried = v1 > 0.0 || v2 > 0.0;
+            if carried {
+                x.extend([inputs[4], inputs[5]]);
+                atol.extend([f; 2]);
+                scale.extend([1e6; 2]);
+            }
+            let tol = Tolerances {
+                rtol: self.s.params.solver.rtol,
+                atol,
+            };
             integrate(
                 |_t, x, dx| {
-                    Self::derivatives(c, p, &inputs, (&g, &p0), x, dx);
+                    if carried {
+                        let ch = [x[n], x[n + 1]];
+                        let q =
+                            Self::derivatives(c, p, &inputs, ch, (&g, &p0), &x[..n], &mut dx[..n]);
+                        dx[n] = k1 * (q[0] - qd1);
+                        dx[n + 1] = k2 * (q[1] - qd2);
+                    } else {
+                        let ch = [inputs[4], inputs[5]];
+                        Self::derivatives(c, p, &inputs, ch, (&g, &p0), x, dx);
+                    }
                 },
                 &mut x,
                 self.s.t,
@@ -268,6 +387,7 @@ impl Model for ManifoldFmu {
                 &mut SolverStats::default(),
             )
             .map_err(|e| e.to_string())?;
+            x.truncate(n);
             self.s.x = x;
         }
         self.s.t += h;

@@ -2,6 +2,7 @@
 
 mod bench;
 mod cosim;
+mod gap;
 mod package;
 mod plot;
 mod simulate;
@@ -104,6 +105,77 @@ enum Command {
         #[arg(long)]
         inputs_only: bool,
     },
+    /// Model-gap workflow: simulate the model under the measured experiment's drive, find
+    /// where it disagrees with the data (signals, time windows, frequency bands), fit every
+    /// missing registry effect within its physical bounds (Levenberg-Marquardt, in parallel),
+    /// add the one that explains most for its complexity, and repeat until the data are
+    /// explained within their noise. Writes report.md (with SVG figures), report.json and
+    /// fitted_model.toml into DIR; never overwrites an input.
+    Gap {
+        /// Measured data: CSV, header line, first column `time` (s), then bench.fmu
+        /// variables in SI units (y, P1, P2, u1, u2) and the reference column
+        #[arg(long)]
+        data: PathBuf,
+        /// How the data were taken (TOML: mode, supply_pressure, tank_pressure,
+        /// initial_position, [drive] kind = "proportional" (kp, reference) or "open_loop")
+        #[arg(long)]
+        experiment: PathBuf,
+        /// Starting model (parameter TOML); default: built-in parameters, every effect off
+        #[arg(long)]
+        model: Option<PathBuf>,
+        /// Directory for the report and the fitted parameter file
+        #[arg(long, default_value = "out/gap")]
+        out: PathBuf,
+    },
+    /// Write measured-like data with hidden effects: the model with each named effect on at
+    /// a random plausible magnitude, driven through an experiment and sampled like the bench
+    /// (1 kHz, sensor noise, 16-bit). Writes measured.csv and experiment.toml, and the truth
+    /// in answer.json, which `hbench gap` never reads.
+    Hide {
+        /// Effect(s) to hide, by registry name (repeat for several; `none` for none)
+        #[arg(long = "effect", required = true)]
+        effects: Vec<String>,
+        /// Experiment: sweep (closed-loop 1-300 Hz sine sweep, 3.4 mm), steps (+-10 mm),
+        /// moves (7th-order), chirp (open-loop commands around mid stroke)
+        #[arg(long, default_value = "sweep", value_parser = gap::hide::Kind::parse)]
+        experiment: gap::hide::Kind,
+        /// Seed of the magnitudes and of the noise
+        #[arg(long, default_value_t = 1)]
+        seed: u64,
+        /// Fix a parameter instead of drawing it, PATH=VALUE in SI units (repeatable),
+        /// e.g. --at manifold.volume_scale=1.0
+        #[arg(long, value_parser = gap::hide::parse_setting)]
+        at: Vec<(String, f64)>,
+        /// The known model the hidden effects are added to (parameter TOML; default:
+        /// built-in parameters, every effect off); give the same file to `gap --model`
+        #[arg(long)]
+        base: Option<PathBuf>,
+        #[arg(long, default_value = "out/hidden")]
+        out: PathBuf,
+        /// Replace files already in DIR
+        #[arg(long)]
+        force: bool,
+    },
+    /// Blind study of the model-gap workflow: for every hidden effect (or pair), experiment
+    /// and seed, `hide` data and let `gap` find what is missing without the answer; writes
+    /// blind.md (rates per effect: first named correctly, all found, fitted within 20 %,
+    /// gap closed) and blind.json.
+    Blind {
+        /// Effects to hide (default: every candidate); repeat the option
+        #[arg(long = "effect")]
+        effects: Vec<String>,
+        /// Experiments (default: all four)
+        #[arg(long = "experiment", value_parser = gap::hide::Kind::parse)]
+        experiments: Vec<gap::hide::Kind>,
+        /// Seeds per effect and experiment
+        #[arg(long, default_value_t = 2)]
+        seeds: u64,
+        /// Hide every pair of the effects at once instead of one at a time
+        #[arg(long)]
+        pairs: bool,
+        #[arg(long, default_value = "out/blind")]
+        out: PathBuf,
+    },
     /// Measure the speed of the bench model: simulated seconds per CPU second for the
     /// bench in mode 3 under proportional control following +-10 mm moves, static and
     /// second-order servovalve, rtol 1e-6, and the deviation from an rtol 1e-9 run.
@@ -179,6 +251,43 @@ fn main() -> ExitCode {
             },
             inputs_only,
         }),
+        Command::Gap {
+            data,
+            experiment,
+            model,
+            out,
+        } => gap::main(&data, &experiment, model.as_deref(), &out),
+        Command::Hide {
+            effects,
+            experiment,
+            seed,
+            at,
+            base,
+            out,
+            force,
+        } => gap::hide::main(
+            &effects,
+            experiment,
+            seed,
+            &at,
+            base.as_deref(),
+            &out,
+            force,
+        ),
+        Command::Blind {
+            effects,
+            experiments,
+            seeds,
+            pairs,
+            out,
+        } => {
+            let kinds = if experiments.is_empty() {
+                gap::hide::Kind::ALL.to_vec()
+            } else {
+                experiments
+            };
+            gap::blind::main(&effects, &kinds, seeds, pairs, &out)
+        }
         Command::Bench { seconds, json } => bench::main(seconds, json),
         Command::Cosim(args) => cosim::main(args),
         Command::Sweep { args } => sweep::main(&args),

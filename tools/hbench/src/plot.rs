@@ -40,8 +40,13 @@ fn range(lines: &[Line]) -> (f64, f64) {
     (lo - pad, hi + pad)
 }
 
-/// Write the panels stacked into an SVG file titled `title`.
+/// Write the panels stacked into an SVG file titled `title`, against time.
 pub fn time_traces(path: &Path, title: &str, panels: &[Panel]) -> Result<(), String> {
+    stacked(path, title, "time (s)", panels)
+}
+
+/// Write the panels stacked into an SVG file, against a shared x quantity.
+pub fn stacked(path: &Path, title: &str, x_desc: &str, panels: &[Panel]) -> Result<(), String> {
     let height = PANEL_HEIGHT * panels.len() as u32 + 40;
     let root = SVGBackend::new(path, (WIDTH, height)).into_drawing_area();
     let fail = |e: &dyn std::fmt::Display| format!("plot {}: {e}", path.display());
@@ -60,7 +65,7 @@ pub fn time_traces(path: &Path, title: &str, panels: &[Panel]) -> Result<(), Str
             .map_err(|e| fail(&e))?;
         chart
             .configure_mesh()
-            .x_desc("time (s)")
+            .x_desc(x_desc)
             .y_desc(panel.title.as_str())
             .light_line_style(WHITE.mix(0.0))
             .draw()
@@ -81,6 +86,117 @@ pub fn time_traces(path: &Path, title: &str, panels: &[Panel]) -> Result<(), Str
                 .draw()
                 .map_err(|e| fail(&e))?;
         }
+    }
+    root.present().map_err(|e| fail(&e))
+}
+
+/// One line of a log-log panel: its colour (palette index) and whether it is dashed.
+pub struct LogLine {
+    pub label: String,
+    pub points: Vec<(f64, f64)>,
+    pub color: usize,
+    pub dashed: bool,
+}
+
+/// One log-log panel: a title above it, a y-axis title and its lines.
+pub struct LogPanel {
+    pub title: String,
+    pub y_desc: String,
+    pub lines: Vec<LogLine>,
+}
+
+/// Smallest and largest positive values, widened to whole decades (a log axis shows no
+/// zero or negative value).
+fn decades(values: impl Iterator<Item = f64>) -> (f64, f64) {
+    let (lo, hi) = values
+        .filter(|v| v.is_finite() && *v > 0.0)
+        .fold((f64::MAX, f64::MIN), |(a, b), v| (a.min(v), b.max(v)));
+    if lo > hi {
+        return (0.1, 10.0);
+    }
+    let (lo, hi) = (
+        10f64.powf(lo.log10().floor()),
+        10f64.powf(hi.log10().ceil()),
+    );
+    (lo, if hi > lo { hi } else { 10.0 * lo })
+}
+
+/// Write log-log panels in a grid of `columns` into an SVG file titled `title`; every line
+/// is drawn with a marker at each point, so that a line of one point still shows.
+pub fn log_log(
+    path: &Path,
+    title: &str,
+    x_desc: &str,
+    panels: &[LogPanel],
+    columns: usize,
+) -> Result<(), String> {
+    let columns = columns.max(1);
+    let rows = panels.len().div_ceil(columns);
+    let height = 340 * rows as u32 + 40;
+    let root = SVGBackend::new(path, (WIDTH, height)).into_drawing_area();
+    let fail = |e: &dyn std::fmt::Display| format!("plot {}: {e}", path.display());
+    root.fill(&WHITE).map_err(|e| fail(&e))?;
+    let root = root
+        .titled(title, ("sans-serif", 18))
+        .map_err(|e| fail(&e))?;
+    // the x values are few and chosen (the steps of a study): a margin, not decades
+    let (x0, x1) = panels
+        .iter()
+        .flat_map(|p| p.lines.iter().flat_map(|l| l.points.iter().map(|q| q.0)))
+        .filter(|x| *x > 0.0)
+        .fold((f64::MAX, f64::MIN), |(a, b), x| (a.min(x), b.max(x)));
+    let (x0, x1) = if x0 <= x1 {
+        (x0 / 1.5, x1 * 1.5)
+    } else {
+        (0.1, 10.0)
+    };
+    for (area, panel) in root.split_evenly((rows, columns)).iter().zip(panels) {
+        let (y0, y1) = decades(
+            panel
+                .lines
+                .iter()
+                .flat_map(|l| l.points.iter().map(|q| q.1)),
+        );
+        let mut chart = ChartBuilder::on(area)
+            .caption(panel.title.as_str(), ("sans-serif", 14))
+            .margin(8)
+            .x_label_area_size(30)
+            .y_label_area_size(60)
+            .build_cartesian_2d((x0..x1).log_scale(), (y0..y1).log_scale())
+            .map_err(|e| fail(&e))?;
+        chart
+            .configure_mesh()
+            .x_desc(x_desc)
+            .y_desc(panel.y_desc.as_str())
+            .light_line_style(WHITE.mix(0.0))
+            .draw()
+            .map_err(|e| fail(&e))?;
+        for line in &panel.lines {
+            let color = Palette99::pick(line.color).to_rgba();
+            let points: Vec<(f64, f64)> =
+                line.points.iter().copied().filter(|q| q.1 > 0.0).collect();
+            let style = ShapeStyle::from(&color).stroke_width(2);
+            let series = if line.dashed {
+                chart.draw_series(DashedLineSeries::new(points.clone(), 8, 5, style))
+            } else {
+                chart.draw_series(LineSeries::new(points.clone(), style))
+            };
+            series
+                .map_err(|e| fail(&e))?
+                .label(line.label.as_str())
+                .legend(move |(x, y)| PathElement::new([(x, y), (x + 16, y)], color));
+            chart
+                .draw_series(points.iter().map(|&q| Circle::new(q, 3, color.filled())))
+                .map_err(|e| fail(&e))?;
+        }
+        chart
+            .configure_series_labels()
+            .position(SeriesLabelPosition::UpperLeft)
+            .background_style(WHITE.mix(0.8))
+            .border_style(BLACK)
+            .label_font(("sans-serif", 11))
+            .draw()
+            .map_err(|e| fail(&e))?;
     }
     root.present().map_err(|e| fail(&e))
 }

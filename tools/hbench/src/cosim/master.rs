@@ -119,6 +119,9 @@ pub struct Master {
     inputs: HashMap<String, Vec<(usize, u32)>>,
     /// System output name -> (component, value reference)
     outputs: HashMap<String, (usize, u32)>,
+    /// Per component: None, stepped at the communication step; Some(T), a sampled
+    /// component (the controller) stepped at its own period T, a multiple of the step.
+    periods: Vec<Option<f64>>,
     pub t: f64,
 }
 
@@ -183,6 +186,7 @@ impl Master {
         }
         let (links, inputs, outputs) = wire(sys, &slaves)?;
         let mut m = Master {
+            periods: vec![None; slaves.len()],
             slaves,
             links,
             inputs,
@@ -216,6 +220,23 @@ impl Master {
         Ok(())
     }
 
+    /// Step component `name` at its own period (s) instead of the communication step
+    /// (multi-rate: a sampled controller at 1 ms around a plant at 0.1 ms).
+    pub fn sample_every(&mut self, name: &str, period: f64) -> Result<(), String> {
+        let k = self
+            .slaves
+            .iter()
+            .position(|s| s.name == name)
+            .ok_or_else(|| format!("the system has no component {name}"))?;
+        self.periods[k] = Some(period);
+        Ok(())
+    }
+
+    /// Whether the system has a component `name`.
+    pub fn has(&self, name: &str) -> bool {
+        self.slaves.iter().any(|s| s.name == name)
+    }
+
     /// Set a system input (every component input it drives).
     pub fn set_input(&mut self, name: &str, x: f64) -> Result<(), String> {
         let targets = self
@@ -240,25 +261,48 @@ impl Master {
     }
 
     /// One communication step of `h`.
+    ///
+    /// A sampled component whose period begins at t_n reads its inputs first: its
+    /// outputs at t_n depend on them (a controller's command on the sample it just took),
+    /// so the others, in either order, then read a command computed from the state at
+    /// t_n, as a sampled controller on the real bench does. It steps once its period is
+    /// over; in between its outputs hold (zero-order hold).
     pub fn step(&mut self, h: f64, order: Order) -> Result<(), String> {
+        let eps = 1e-9 * h;
+        let sampled: Vec<(usize, f64)> = (0..self.slaves.len())
+            .filter_map(|k| self.periods[k].map(|p| (k, p)))
+            .collect();
+        for &(k, _) in &sampled {
+            if (self.slaves[k].t - self.t).abs() < eps {
+                self.pull(k)?;
+            }
+        }
+        let plant: Vec<usize> = (0..self.slaves.len())
+            .filter(|&k| self.periods[k].is_none())
+            .collect();
         match order {
             Order::Jacobi => {
                 // every input from the outputs at t_n before anyone moves
-                for k in 0..self.slaves.len() {
+                for &k in &plant {
                     self.pull(k)?;
                 }
-                for s in &mut self.slaves {
-                    s.step(h)?;
+                for &k in &plant {
+                    self.slaves[k].step(h)?;
                 }
             }
             Order::GaussSeidel => {
-                for k in 0..self.slaves.len() {
+                for &k in &plant {
                     self.pull(k)?;
                     self.slaves[k].step(h)?;
                 }
             }
         }
         self.t += h;
+        for (k, period) in sampled {
+            if self.slaves[k].t + period <= self.t + eps {
+                self.slaves[k].step(period)?;
+            }
+        }
         Ok(())
     }
 }

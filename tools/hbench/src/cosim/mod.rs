@@ -3,8 +3,10 @@
 //!
 //! Both run the same experiment under the same sampled proportional controller (the
 //! thesis's: 1 kHz, u1 = -u2 = Kp (y_ref - y), +-10 V, no delay), computed by this master
-//! from the system output y; only the plant differs. The comparison is taken at the
-//! control instants (every 1 ms), where both hold the same command.
+//! from the system output y, or for the system, with `--controller`, by controller.fmu
+//! inside it (the package's closed-loop variants, stepped at 1 ms by the multi-rate
+//! master); only the plant differs. The comparison is taken at the control instants
+//! (every 1 ms), where both hold the same command.
 
 pub mod master;
 pub mod ssp;
@@ -21,6 +23,8 @@ use hbmodel::Mode;
 use master::{Master, Order};
 use ssp::{Component, Connection, End, Package, System};
 
+/// Name of the controller.fmu instance in the closed-loop variants of bench.ssp.
+const CONTROLLER: &str = "controller";
 /// Controller sampling period (s), the thesis bench's.
 pub const CONTROL_PERIOD: f64 = 1e-3;
 /// Proportional gain of the thesis step tests (V/m).
@@ -118,11 +122,16 @@ fn closed_loop(
         if t >= exp.stop_time() - 1e-9 {
             break;
         }
-        let u = (KP * (y_ref - y)).clamp(-U_MAX, U_MAX);
-        m.set_input("u1", u)?;
-        // mode 1 drives the actuator with SV1 alone; SV2 stays connected, at null
-        let u2 = if mode == Mode::FourWaySingle { 0.0 } else { -u };
-        m.set_input("u2", u2)?;
+        if m.has(CONTROLLER) {
+            // controller.fmu in the system samples y itself
+            m.set_input("y_ref", y_ref)?;
+        } else {
+            let u = (KP * (y_ref - y)).clamp(-U_MAX, U_MAX);
+            m.set_input("u1", u)?;
+            // mode 1 drives the actuator with SV1 alone; SV2 stays connected, at null
+            let u2 = if mode == Mode::FourWaySingle { 0.0 } else { -u };
+            m.set_input("u2", u2)?;
+        }
         for _ in 0..sub {
             m.step(h, order)
                 .map_err(|e| format!("at t = {:.5} s: {e}", m.t))?;
@@ -204,6 +213,9 @@ pub fn run_cosim(
     order: Order,
 ) -> Result<Trace, String> {
     let mut m = Master::new(pkg, &overrides(exp, mode))?;
+    if m.has(CONTROLLER) {
+        m.sample_every(CONTROLLER, CONTROL_PERIOD)?;
+    }
     closed_loop(&mut m, exp, mode, h, order)
 }
 
@@ -256,12 +268,25 @@ pub struct CosimArgs {
     /// Directory for cosim_errors.json, cosim_traces.csv and reference_<experiment>.csv
     #[arg(long, default_value = "out/cosim")]
     out: PathBuf,
+    /// Close the loop with controller.fmu inside the system (the package's ClosedLoop
+    /// variants, controller sampled at 1 ms) instead of the master's own proportional law
+    #[arg(long)]
+    controller: bool,
+    /// Also write the error-vs-step plot (SVG) of the runs to this file
+    #[arg(long)]
+    plot: Option<PathBuf>,
 }
 
 pub fn main(args: CosimArgs) -> Result<(), String> {
-    let file = std::fs::File::open(&args.system)
-        .map_err(|e| format!("cannot open {}: {e}", args.system.display()))?;
-    let pkg = ssp::open(file)?;
+    let package = |mode: Mode| -> Result<Package, String> {
+        let file = std::fs::File::open(&args.system)
+            .map_err(|e| format!("cannot open {}: {e}", args.system.display()))?;
+        if args.controller {
+            ssp::open_variant(file, ssp::closed_loop_ssd(mode))
+        } else {
+            ssp::open(file)
+        }
+    };
     let bench_path = args.bench.clone().unwrap_or_else(|| {
         args.system
             .parent()
@@ -294,6 +319,7 @@ pub fn main(args: CosimArgs) -> Result<(), String> {
     for &exp in &args.experiments {
         write_reference(&args.out, exp)?;
         for &mode in &modes {
+            let pkg = package(mode)?;
             let t0 = Instant::now();
             let reference = run_bench(&bench, exp, mode)?;
             eprintln!(
@@ -339,8 +365,14 @@ pub fn main(args: CosimArgs) -> Result<(), String> {
             references.push((exp, mode, reference));
         }
     }
-    std::fs::write(args.out.join("cosim_errors.json"), errors_json(&outcomes))
-        .map_err(|e| e.to_string())?;
+    std::fs::write(
+        args.out.join("cosim_errors.json"),
+        errors_json(&outcomes, args.controller),
+    )
+    .map_err(|e| e.to_string())?;
+    if let Some(path) = &args.plot {
+        plot_errors(path, &outcomes)?;
+    }
     std::fs::write(
         args.out.join("cosim_traces.csv"),
         traces_csv(&outcomes, &references),
@@ -378,7 +410,7 @@ fn write_reference(dir: &Path, exp: Experiment) -> Result<(), String> {
     std::fs::write(&path, s).map_err(|e| format!("cannot write {}: {e}", path.display()))
 }
 
-fn errors_json(outcomes: &[Outcome]) -> String {
+fn errors_json(outcomes: &[Outcome], controller_fmu: bool) -> String {
     let runs: Vec<serde_json::Value> = outcomes
         .iter()
         .map(|o| {
@@ -400,7 +432,11 @@ fn errors_json(outcomes: &[Outcome]) -> String {
         })
         .collect();
     let doc = serde_json::json!({
-        "control": {"law": "proportional", "Kp_V_per_m": KP, "period_s": CONTROL_PERIOD, "u_max_V": U_MAX},
+        "control": {
+            "law": "proportional", "Kp_V_per_m": KP, "period_s": CONTROL_PERIOD, "u_max_V": U_MAX,
+            "computed_by": if controller_fmu { "controller.fmu in the system (bench.fmu: the master)" } else { "the master, for both" },
+            "reads": "the true y (actuator.fmu's y, bench.fmu's y): no acquisition delay on either side",
+        },
         "position_error": "largest |y - y_bench| at the control instants, percent of the amplitude (20 mm move, 3.4 mm sine)",
         "pressure_error": "largest |P_i - P_i,bench| of the two chambers at the control instants, bar",
         "runs": runs,
@@ -434,6 +470,71 @@ fn traces_csv(outcomes: &[Outcome], references: &[(Experiment, Mode, Trace)]) ->
         }
     }
     s
+}
+
+/// Error against communication step, log-log: one row of panels per experiment
+/// (position, pressure), one line per mode (colour) and order (Jacobi solid,
+/// Gauss-Seidel dashed); an unstable run leaves its point out.
+fn plot_errors(path: &Path, outcomes: &[Outcome]) -> Result<(), String> {
+    use crate::plot::{LogLine, LogPanel};
+    let mut experiments: Vec<Experiment> = outcomes.iter().map(|o| o.experiment).collect();
+    experiments.dedup();
+    let mut panels = Vec::new();
+    for exp in experiments {
+        for (what, unit) in [
+            ("position", "% of the amplitude"),
+            ("chamber pressure", "bar"),
+        ] {
+            let mut lines: Vec<LogLine> = Vec::new();
+            for o in outcomes.iter().filter(|o| o.experiment == exp) {
+                let label = format!("mode {} {}", o.mode.number(), o.order.name());
+                let k = match lines.iter().position(|l| l.label == label) {
+                    Some(k) => k,
+                    None => {
+                        lines.push(LogLine {
+                            label,
+                            points: vec![],
+                            color: o.mode.number() as usize - 1,
+                            dashed: o.order == Order::GaussSeidel,
+                        });
+                        lines.len() - 1
+                    }
+                };
+                if let Ok((ey, ep)) = o.result {
+                    let e = if unit == "bar" { ep / BAR } else { 100.0 * ey };
+                    lines[k].points.push((o.step * 1e3, e));
+                }
+            }
+            // issue 7's acceptance limit, across the steps studied
+            let (limit, symbol) = if unit == "bar" {
+                (5.0, "bar")
+            } else {
+                (2.0, "%")
+            };
+            let (h0, h1) = (
+                SWEEP_STEPS[0] * 1e3,
+                SWEEP_STEPS[SWEEP_STEPS.len() - 1] * 1e3,
+            );
+            lines.push(LogLine {
+                label: format!("limit {limit} {symbol}"),
+                points: vec![(h0, limit), (h1, limit)],
+                color: 9,
+                dashed: true,
+            });
+            panels.push(LogPanel {
+                title: format!("{}: largest {what} error against bench.fmu", exp.name()),
+                y_desc: format!("{what} error ({unit})"),
+                lines,
+            });
+        }
+    }
+    crate::plot::log_log(
+        path,
+        "Co-simulated bench against bench.fmu (missing points: unstable)",
+        "communication step (ms)",
+        &panels,
+        2,
+    )
 }
 
 /// Markdown table: one row per experiment, mode and order; one column per step.

@@ -12,7 +12,7 @@ use std::collections::BTreeMap;
 use std::io::{Read, Seek, Write};
 use std::path::Path;
 
-use hbfmu::models::{actuator, manifold, servovalve, HasParams};
+use hbfmu::models::{actuator, controller, manifold, servovalve, HasParams};
 use hbfmu::slave::{Model, Value};
 use hbmodel::manifold::Circuit;
 use hbmodel::{Mode, Params};
@@ -99,6 +99,7 @@ const WIRES: [(&str, &str, &str, &str); 16] = [
     ("manifold", "Q2", "actuator", "Q2"),
     ("actuator", "P1", "manifold", "P1"),
     ("actuator", "P2", "manifold", "P2"),
+    // + the chamber port's terms, same name at both ends (bench_system adds them)
 ];
 
 /// System inputs and the component inputs they drive.
@@ -176,11 +177,15 @@ fn component_params(p: &Params) -> [Params; 4] {
 pub fn bench_system(mode: Mode) -> Result<System, String> {
     let p = Params::thesis_bench(mode);
     let [sv1p, sv2p, mp, ap] = component_params(&p);
+    // The listing is the Gauss-Seidel order. The actuator goes first: its carried model
+    // of the passage must start from the manifold's state at t_n; the manifold, last,
+    // starts its carried chamber pressures from the actuator's t_n+1, which costs less
+    // accuracy than the converse (docs/cosim.md).
     let components = vec![
+        component::<actuator::ActuatorFmu>("actuator", "actuator", &ap)?,
         component::<servovalve::ServovalveFmu>("sv1", "servovalve", &sv1p)?,
         component::<servovalve::ServovalveFmu>("sv2", "servovalve", &sv2p)?,
         component::<manifold::ManifoldFmu>("manifold", "manifold", &mp)?,
-        component::<actuator::ActuatorFmu>("actuator", "actuator", &ap)?,
     ];
     let end = |e: &str, c: &str| End {
         element: Some(e.into()),
@@ -201,6 +206,21 @@ pub fn bench_system(mode: Mode) -> Result<System, String> {
         start: end(a, b),
         end: end(c, d),
     }));
+    // the chamber port (docs/cosim.md): each side carries the other's element over a
+    // step, the manifold the chamber (displaced flow, volume, bulk modulus), the actuator
+    // the passage and the node behind it (driving pressure, inertance, volume, feed)
+    let chamber_port = actuator::CHAMBER_OUTPUTS
+        .iter()
+        .map(|v| ("actuator", v.0, "manifold"))
+        .chain(
+            actuator::PASSAGE_INPUTS
+                .iter()
+                .map(|v| ("manifold", v.0, "actuator")),
+        );
+    connections.extend(chamber_port.map(|(a, name, b)| Connection {
+        start: end(a, name),
+        end: end(b, name),
+    }));
     connections.extend(SYSTEM_OUTPUTS.iter().map(|(s, e, c)| Connection {
         start: end(e, c),
         end: system(s),
@@ -212,6 +232,76 @@ pub fn bench_system(mode: Mode) -> Result<System, String> {
         components,
         connections,
     })
+}
+
+/// Variant SSDs of the closed loop (SSP 1.0 section 3: further SSD files at the package
+/// root are variants; a tool without variant support reads SystemStructure.ssd alone).
+/// Two, because the wiring differs: mode 1 drives the actuator with SV1 alone and leaves
+/// SV2 at null (the controller's u2 is not connected), modes 2 and 3 drive both valves.
+pub const CLOSED_LOOP_SSD: &str = "ClosedLoop.ssd";
+pub const CLOSED_LOOP_MODE1_SSD: &str = "ClosedLoopMode1.ssd";
+
+/// The variant SSD holding the closed loop in `mode`.
+pub fn closed_loop_ssd(mode: Mode) -> &'static str {
+    match mode {
+        Mode::FourWaySingle => CLOSED_LOOP_MODE1_SSD,
+        _ => CLOSED_LOOP_SSD,
+    }
+}
+
+/// The system of [`bench_system`] closed by a `controller.fmu` instance: system input
+/// `y_ref` (and `P_ref`); the controller reads the actuator's y, P1, P2 (the plant's own
+/// values: the components have no acquisition delay) and drives the valves. It samples at
+/// its own 1 ms period (docs/cosim.md, multi-rate master). Its built-in parameters are the
+/// thesis's proportional law (Kp = 1169 V/m): nothing to bind.
+pub fn closed_loop_system(mode: Mode) -> Result<System, String> {
+    let mut sys = bench_system(mode)?;
+    sys.name = match mode {
+        Mode::FourWaySingle => "HydroBenchClosedLoopMode1".into(),
+        _ => "HydroBenchClosedLoop".into(),
+    };
+    use modeldesc::Causality as C;
+    sys.components.push(Component {
+        name: "controller".into(),
+        source: "resources/controller.fmu".into(),
+        inputs: names::<controller::ControllerFmu>(C::Input),
+        outputs: names::<controller::ControllerFmu>(C::Output),
+        parameters: vec![],
+    });
+    // the valve commands come from the controller now, not from outside
+    sys.connections.retain(|c| {
+        !(c.start.element.is_none() && ["u1", "u2"].contains(&c.start.connector.as_str()))
+    });
+    sys.inputs.retain(|n| n != "u1" && n != "u2");
+    let end = |e: &str, c: &str| End {
+        element: Some(e.into()),
+        connector: c.into(),
+    };
+    let mut wires = vec![
+        ("actuator", "y", "controller", "y"),
+        ("actuator", "P1", "controller", "P1"),
+        ("actuator", "P2", "controller", "P2"),
+        ("controller", "u1", "sv1", "u"),
+    ];
+    if mode != Mode::FourWaySingle {
+        wires.push(("controller", "u2", "sv2", "u"));
+    }
+    sys.connections
+        .extend(wires.iter().map(|(a, b, c, d)| Connection {
+            start: end(a, b),
+            end: end(c, d),
+        }));
+    for input in ["y_ref", "P_ref"] {
+        sys.inputs.push(input.into());
+        sys.connections.push(Connection {
+            start: End {
+                element: None,
+                connector: input.into(),
+            },
+            end: end("controller", input),
+        });
+    }
+    Ok(sys)
 }
 
 // ---------------------------------------------------------------------------------------
@@ -332,8 +422,18 @@ pub fn write_package(dir: &Path) -> Result<std::path::PathBuf, String> {
         zip.write_all(bytes).map_err(|e| e.to_string())
     };
     add(SSD, to_ssd(&sys, 0.35).as_bytes())?;
+    let variants = [
+        closed_loop_system(DEFAULT_MODE)?,
+        closed_loop_system(Mode::FourWaySingle)?,
+    ];
+    for (name, v) in [CLOSED_LOOP_SSD, CLOSED_LOOP_MODE1_SSD]
+        .iter()
+        .zip(&variants)
+    {
+        add(name, to_ssd(v, 0.35).as_bytes())?;
+    }
     let mut packed = Vec::new();
-    for c in &sys.components {
+    for c in variants.iter().flat_map(|v| &v.components) {
         if packed.contains(&c.source) {
             continue;
         }
@@ -505,6 +605,11 @@ pub struct Package {
 }
 
 pub fn open<R: Read + Seek>(reader: R) -> Result<Package, String> {
+    open_variant(reader, SSD)
+}
+
+/// Open the package with the system of its root SSD `ssd` (a variant, or [`SSD`]).
+pub fn open_variant<R: Read + Seek>(reader: R, ssd: &str) -> Result<Package, String> {
     let mut zip = zip::ZipArchive::new(reader).map_err(|e| format!("not an SSP package: {e}"))?;
     let mut read = |name: &str| -> Result<Vec<u8>, String> {
         let mut f = zip
@@ -514,7 +619,7 @@ pub fn open<R: Read + Seek>(reader: R) -> Result<Package, String> {
         f.read_to_end(&mut v).map_err(|e| e.to_string())?;
         Ok(v)
     };
-    let ssd = String::from_utf8(read(SSD)?).map_err(|e| format!("{SSD}: {e}"))?;
+    let ssd = String::from_utf8(read(ssd)?).map_err(|e| format!("{ssd}: {e}"))?;
     let system = parse_ssd(&ssd)?;
     let mut fmus = BTreeMap::new();
     for c in &system.components {
@@ -547,6 +652,33 @@ mod tests {
                 panic!("dead volume not bound")
             };
             assert!(v > hbmodel::params::ActuatorParams::default().dead_volume);
+            // both ends of every chamber-port term are wired, by the same name
+            let wired = |from: &str, name: &str, to: &str| {
+                sys.connections.iter().any(|c| {
+                    c.start.element.as_deref() == Some(from)
+                        && c.end.element.as_deref() == Some(to)
+                        && c.start.connector == name
+                        && c.end.connector == name
+                })
+            };
+            for (name, _, _) in actuator::CHAMBER_OUTPUTS {
+                assert!(wired("actuator", name, "manifold"), "{name}");
+            }
+            for (name, _, _) in actuator::PASSAGE_INPUTS {
+                assert!(wired("manifold", name, "actuator"), "{name}");
+            }
+            // the closed loop: the controller drives SV2 except in mode 1
+            let cl = closed_loop_system(mode).unwrap();
+            assert_eq!(parse_ssd(&to_ssd(&cl, 0.35)).unwrap(), cl);
+            let drives = |valve: &str| {
+                cl.connections.iter().any(|c| {
+                    c.start.element.as_deref() == Some("controller")
+                        && c.end.element.as_deref() == Some(valve)
+                })
+            };
+            assert!(drives("sv1"));
+            assert_eq!(drives("sv2"), mode != Mode::FourWaySingle);
+            assert!(!cl.inputs.contains(&"u1".to_string()));
         }
     }
 }

@@ -1,0 +1,459 @@
+//! Where simulation and measurement disagree: per signal, per time window and per
+//! frequency band (frequency-response estimates of the measured and the simulated bench
+//! from the same input), and the noise floor of the data.
+
+use std::f64::consts::PI;
+
+use rustfft::{num_complex::Complex, FftPlanner};
+use serde::Serialize;
+
+use super::data::{Drive, Experiment, Measured};
+use super::drive::Traces;
+
+/// Noise standard deviation of a sampled signal, estimated from the data alone by
+/// minimum statistics: white noise spreads its power evenly over all frequencies, while
+/// what the bench does (moves, sweeps, ringing resonances) fills only part of the band.
+/// Welch's power spectral density on short segments gives every bin an estimate with
+/// many degrees of freedom; the lower fifth of the bins holds only noise, and its
+/// quantile, corrected for the chi-square spread of the estimates, is the noise
+/// variance. Floored at the quantisation noise.
+pub fn noise(x: &[f64], quantum: f64) -> f64 {
+    let floor = quantum / 12f64.sqrt();
+    let n = NOISE_SEGMENT;
+    if x.len() < 2 * n {
+        return floor;
+    }
+    let fft = FftPlanner::new().plan_fft_forward(n);
+    let hann: Vec<f64> = (0..n)
+        .map(|k| 0.5 - 0.5 * (2.0 * PI * k as f64 / n as f64).cos())
+        .collect();
+    let w2: f64 = hann.iter().map(|w| w * w).sum();
+    let mut psd = vec![0.0; n / 2];
+    let mut segments = 0usize;
+    let mut start = 0;
+    while start + n <= x.len() {
+        let s = &x[start..start + n];
+        let mean = s.iter().sum::<f64>() / n as f64;
+        let mut b: Vec<Complex<f64>> = s
+            .iter()
+            .zip(&hann)
+            .map(|(v, w)| Complex::new((v - mean) * w, 0.0))
+            .collect();
+        fft.process(&mut b);
+        for (p, c) in psd.iter_mut().zip(&b) {
+            *p += c.norm_sqr() / w2;
+        }
+        segments += 1;
+        start += n / 2;
+    }
+    // bins 1..n/2: the mean removal empties bin 0
+    let mut bins: Vec<f64> = psd[1..].iter().map(|p| p / segments as f64).collect();
+    bins.sort_by(f64::total_cmp);
+    let q = bins[(NOISE_QUANTILE * bins.len() as f64) as usize];
+    // Wilson-Hilferty: the NOISE_QUANTILE quantile of chi2(nu)/nu, nu = 2 per segment
+    // less the Hann overlap's correlation (about 10 %)
+    let nu = 1.8 * segments as f64;
+    let a = 2.0 / (9.0 * nu);
+    let spread = (1.0 - a + NOISE_QUANTILE_Z * a.sqrt()).powi(3);
+    (q / spread).sqrt().max(floor)
+}
+
+/// Welch segment of the noise estimate: 128 samples, many segments per experiment.
+const NOISE_SEGMENT: usize = 128;
+/// Quantile of the bins taken as noise-only, and its standard normal deviate.
+const NOISE_QUANTILE: f64 = 0.2;
+const NOISE_QUANTILE_Z: f64 = -0.8416;
+
+/// What the acquisition can read of each compared signal (SI): a simulated value beyond
+/// it is compared as the saturated converter would record it (the pressure sensors read
+/// up to 206 bar, below the 210 bar supply the chambers reach at full command).
+pub fn sensor_range(signal: &str) -> [f64; 2] {
+    let sp = hbmodel::sensors::SensorParams::default();
+    let range = if signal == "y" {
+        sp.position_range
+    } else {
+        sp.pressure_range
+    };
+    [range[0], range[1] - quantum(signal)]
+}
+
+/// The 16-bit quantum of each compared signal (m, Pa): LVDT 0.3 m, pressure 206 bar.
+pub fn quantum(signal: &str) -> f64 {
+    match signal {
+        "y" => 0.3 / 65536.0,
+        _ => 206e5 / 65536.0,
+    }
+}
+
+#[derive(Debug, Clone, Serialize)]
+pub struct SignalGap {
+    pub signal: String,
+    /// RMS of measured - simulated (SI).
+    pub rms: f64,
+    pub noise: f64,
+    /// Mean of measured - simulated (SI): a static offset.
+    pub offset: f64,
+}
+
+#[derive(Debug, Clone, Serialize)]
+pub struct WindowGap {
+    pub start: f64,
+    pub end: f64,
+    /// RMS of the normalised residuals of all compared signals in the window.
+    pub gap: f64,
+}
+
+#[derive(Debug, Clone, Serialize)]
+pub struct BandGap {
+    pub low_hz: f64,
+    pub high_hz: f64,
+    /// 20 log10 |H_measured / H_simulated| over the band's coherent bins (dB).
+    pub gain_db: f64,
+    /// arg(H_measured / H_simulated) (deg, negative: the bench lags the model).
+    pub phase_deg: f64,
+    pub bins: usize,
+}
+
+/// Frequency response of y to the experiment's input (reference or command).
+#[derive(Debug, Clone, Serialize)]
+pub struct Response {
+    pub freq: Vec<f64>,
+    pub measured_db: Vec<f64>,
+    pub simulated_db: Vec<f64>,
+    pub measured_deg: Vec<f64>,
+    pub simulated_deg: Vec<f64>,
+    pub coherent: Vec<bool>,
+    /// Bins the input drives (the simulated response is noiseless: no coherence needed).
+    pub driven: Vec<bool>,
+}
+
+#[derive(Debug, Clone, Serialize)]
+pub struct Resonance {
+    pub measured_hz: f64,
+    pub simulated_hz: f64,
+    pub measured_damping: f64,
+    pub simulated_damping: f64,
+}
+
+#[derive(Debug, Clone, Serialize)]
+pub struct Localisation {
+    pub signals: Vec<SignalGap>,
+    pub windows: Vec<WindowGap>,
+    pub bands: Vec<BandGap>,
+    pub resonance: Option<Resonance>,
+    /// Delay that best explains the phase difference over the coherent bins (s).
+    pub equivalent_delay: Option<f64>,
+    #[serde(skip)]
+    pub response: Option<Response>,
+}
+
+const WINDOWS: usize = 8;
+const BANDS: [[f64; 2]; 5] = [
+    [1.0, 3.0],
+    [3.0, 10.0],
+    [10.0, 30.0],
+    [30.0, 100.0],
+    [100.0, 300.0],
+];
+/// Welch segments: 1024 samples, about 1 Hz resolution at 1 kHz.
+const SEGMENT: usize = 1024;
+/// Bins whose measured coherence is below this are not compared.
+const COHERENCE: f64 = 0.8;
+/// Bins whose input power is below this fraction of the strongest are not compared: 60 dB
+/// down (a log sweep's power falls as 1/f, 25 dB from 1 to 300 Hz), nothing drives the
+/// bench there but the window's leakage.
+const INPUT_POWER: f64 = 1e-6;
+
+/// Cross and auto spectra of x -> y by Welch's method (Hann, 50 % overlap).
+fn spectra(x: &[f64], y: &[f64], period: f64) -> (Vec<f64>, Vec<Complex<f64>>, Vec<f64>, Vec<f64>) {
+    let n = SEGMENT.min(x.len().next_power_of_two() / 2).max(16);
+    let fft = FftPlanner::new().plan_fft_forward(n);
+    let hann: Vec<f64> = (0..n)
+        .map(|k| 0.5 - 0.5 * (2.0 * PI * k as f64 / n as f64).cos())
+        .collect();
+    let mut sxy = vec![Complex::new(0.0, 0.0); n / 2];
+    let (mut sxx, mut syy) = (vec![0.0; n / 2], vec![0.0; n / 2]);
+    // half-overlapping segments, the last one flush with the end so the record's tail
+    // (a sweep's highest frequencies) is analysed too
+    let mut starts: Vec<usize> = (0..)
+        .map(|k| k * n / 2)
+        .take_while(|s| s + n <= x.len())
+        .collect();
+    if starts.last().is_some_and(|&s| s + n < x.len()) {
+        starts.push(x.len() - n);
+    }
+    for start in starts {
+        let seg = |s: &[f64]| -> Vec<Complex<f64>> {
+            let mean = s[start..start + n].iter().sum::<f64>() / n as f64;
+            let mut b: Vec<Complex<f64>> = (0..n)
+                .map(|k| Complex::new((s[start + k] - mean) * hann[k], 0.0))
+                .collect();
+            fft.process(&mut b);
+            b
+        };
+        let (fx, fy) = (seg(x), seg(y));
+        for k in 0..n / 2 {
+            sxy[k] += fx[k].conj() * fy[k];
+            sxx[k] += fx[k].norm_sqr();
+            syy[k] += fy[k].norm_sqr();
+        }
+    }
+    let freq = (0..n / 2).map(|k| k as f64 / (n as f64 * period)).collect();
+    (freq, sxy, sxx, syy)
+}
+
+fn response(m: &Measured, sim: &Traces, input: &[f64]) -> Response {
+    let period = m.period();
+    let (freq, sxy_m, sxx, syy_m) = spectra(input, m.get("y").unwrap_or(&[]), period);
+    let (_, sxy_s, _, _) = spectra(input, sim.get("y").unwrap_or(&[]), period);
+    let db = |h: Complex<f64>| 20.0 * h.norm().max(1e-30).log10();
+    let deg = |h: Complex<f64>| h.arg().to_degrees();
+    let hm: Vec<_> = sxy_m
+        .iter()
+        .zip(&sxx)
+        .map(|(s, x)| s / x.max(1e-300))
+        .collect();
+    let hs: Vec<_> = sxy_s
+        .iter()
+        .zip(&sxx)
+        .map(|(s, x)| s / x.max(1e-300))
+        .collect();
+    // compared bins: coherent, and carrying input power (a sweep leaves the bins above
+    // its last frequency empty, where coherence means nothing)
+    let input_peak = sxx.iter().copied().fold(0.0, f64::max);
+    let driven: Vec<bool> = sxx.iter().map(|x| *x > INPUT_POWER * input_peak).collect();
+    let coherent = (0..freq.len())
+        .map(|k| driven[k] && sxy_m[k].norm_sqr() / (sxx[k] * syy_m[k]).max(1e-300) > COHERENCE)
+        .collect();
+    Response {
+        measured_db: hm.iter().map(|h| db(*h)).collect(),
+        simulated_db: hs.iter().map(|h| db(*h)).collect(),
+        measured_deg: hm.iter().map(|h| deg(*h)).collect(),
+        simulated_deg: hs.iter().map(|h| deg(*h)).collect(),
+        freq,
+        coherent,
+        driven,
+    }
+}
+
+/// The resonance of a response: the bin above 50 Hz that stands highest over the lowest
+/// point between half its frequency and itself (a closed-loop response falls with
+/// frequency, so its resonance is a bump, not the maximum), if it stands 2 dB or more;
+/// damping from the -3 dB width around it.
+fn peak(freq: &[f64], db: &[f64], ok: &[bool]) -> Option<(f64, f64)> {
+    let idx: Vec<usize> = (0..freq.len())
+        .filter(|&k| ok[k] && freq[k] >= 50.0)
+        .collect();
+    let prominence = |k: usize| {
+        let valley = idx
+            .iter()
+            .filter(|&&j| freq[j] >= 0.5 * freq[k] && j <= k)
+            .map(|&j| db[j])
+            .fold(f64::INFINITY, f64::min);
+        db[k] - valley
+    };
+    let &k = idx
+        .iter()
+        .max_by(|a, b| prominence(**a).total_cmp(&prominence(**b)))?;
+    if prominence(k) < 2.0 {
+        return None;
+    }
+    let half = db[k] - 3.0;
+    let lo = (0..k)
+        .rev()
+        .find(|&i| db[i] < half)
+        .map_or(freq[0], |i| freq[i]);
+    let hi = (k..freq.len())
+        .find(|&i| db[i] < half)
+        .map_or(freq[freq.len() - 1], |i| freq[i]);
+    Some((freq[k], (hi - lo) / (2.0 * freq[k])))
+}
+
+pub fn localise(
+    m: &Measured,
+    e: &Experiment,
+    sim: &Traces,
+    noise: &[(&'static str, f64)],
+) -> Localisation {
+    let signals = noise
+        .iter()
+        .filter_map(|(name, sigma)| {
+            let (a, b) = (m.get(name)?, sim.get(name)?);
+            let d: Vec<f64> = a.iter().zip(b).map(|(a, b)| a - b).collect();
+            let n = d.len().max(1) as f64;
+            Some(SignalGap {
+                signal: name.to_string(),
+                rms: (d.iter().map(|x| x * x).sum::<f64>() / n).sqrt(),
+                noise: *sigma,
+                offset: d.iter().sum::<f64>() / n,
+            })
+        })
+        .collect();
+    let n = m.time.len();
+    let windows = (0..WINDOWS)
+        .map(|w| {
+            let (a, b) = (w * n / WINDOWS, ((w + 1) * n / WINDOWS).min(n));
+            let mut s = 0.0;
+            let mut count = 0;
+            for (name, sigma) in noise {
+                if let (Some(x), Some(y)) = (m.get(name), sim.get(name)) {
+                    for k in a..b {
+                        s += ((x[k] - y[k]) / sigma).powi(2);
+                        count += 1;
+                    }
+                }
+            }
+            WindowGap {
+                start: m.time[a],
+                end: m.time[b - 1],
+                gap: (s / count.max(1) as f64).sqrt(),
+            }
+        })
+        .collect();
+    let input = match &e.drive {
+        Drive::Proportional { reference, .. } => m.get(reference),
+        Drive::OpenLoop => m.get("u1"),
+    };
+    let response = input
+        .filter(|x| x.len() >= 256)
+        .map(|x| response(m, sim, x));
+    let (mut bands, mut resonance, mut delay) = (Vec::new(), None, None);
+    if let Some(r) = &response {
+        let ratio = |k: usize| {
+            (
+                r.measured_db[k] - r.simulated_db[k],
+                wrap(r.measured_deg[k] - r.simulated_deg[k]),
+            )
+        };
+        for [lo, hi] in BANDS {
+            let ks: Vec<usize> = (0..r.freq.len())
+                .filter(|&k| r.coherent[k] && r.freq[k] >= lo && r.freq[k] < hi)
+                .collect();
+            if ks.is_empty() {
+                continue;
+            }
+            let (g, p) = ks.iter().fold((0.0, 0.0), |(g, p), &k| {
+                let (dg, dp) = ratio(k);
+                (g + dg, p + dp)
+            });
+            bands.push(BandGap {
+                low_hz: lo,
+                high_hz: hi,
+                gain_db: g / ks.len() as f64,
+                phase_deg: p / ks.len() as f64,
+                bins: ks.len(),
+            });
+        }
+        let ok = &r.coherent;
+        if let (Some((fm, zm)), Some((fs, zs))) = (
+            peak(&r.freq, &r.measured_db, ok),
+            peak(&r.freq, &r.simulated_db, &r.driven),
+        ) {
+            resonance = Some(Resonance {
+                measured_hz: fm,
+                simulated_hz: fs,
+                measured_damping: zm,
+                simulated_damping: zs,
+            });
+        }
+        // least-squares slope of the phase difference against omega through the origin
+        let (mut sxy, mut sxx) = (0.0, 0.0);
+        for k in (0..r.freq.len()).filter(|&k| ok[k] && r.freq[k] > 0.0) {
+            let w = 2.0 * PI * r.freq[k];
+            sxy += w * ratio(k).1.to_radians();
+            sxx += w * w;
+        }
+        if sxx > 0.0 {
+            delay = Some(-sxy / sxx);
+        }
+    }
+    Localisation {
+        signals,
+        windows,
+        bands,
+        resonance,
+        equivalent_delay: delay,
+        response,
+    }
+}
+
+fn wrap(deg: f64) -> f64 {
+    (deg + 180.0).rem_euclid(360.0) - 180.0
+}
+
+/// The disagreement in words.
+pub fn describe(l: &Localisation) -> Vec<String> {
+    let mut s = Vec::new();
+    for g in &l.signals {
+        let (unit, f) = if g.signal == "y" {
+            ("um", 1e6)
+        } else {
+            ("bar", 1e-5)
+        };
+        s.push(format!(
+            "{}: RMS difference {:.3} {unit} = {:.1} x its noise ({:.3} {unit}); mean offset {:+.3} {unit}",
+            g.signal,
+            g.rms * f,
+            g.rms / g.noise,
+            g.noise * f,
+            g.offset * f
+        ));
+    }
+    if let Some(w) = l.windows.iter().max_by(|a, b| a.gap.total_cmp(&b.gap)) {
+        s.push(format!(
+            "largest disagreement in {:.2}-{:.2} s ({:.1} x noise)",
+            w.start, w.end, w.gap
+        ));
+    }
+    for b in &l.bands {
+        s.push(format!(
+            "{:.0}-{:.0} Hz: measured/simulated gain {:+.2} dB, phase {:+.1} deg ({} bins)",
+            b.low_hz, b.high_hz, b.gain_db, b.phase_deg, b.bins
+        ));
+    }
+    if let Some(r) = &l.resonance {
+        s.push(format!(
+            "resonance: measured {:.0} Hz (damping {:.2}), simulated {:.0} Hz (damping {:.2})",
+            r.measured_hz, r.measured_damping, r.simulated_hz, r.simulated_damping
+        ));
+    }
+    if let Some(d) = l.equivalent_delay {
+        s.push(format!(
+            "phase difference equivalent to a delay of {:.3} ms",
+            d * 1e3
+        ));
+    }
+    s
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+    use rand::SeedableRng;
+    use rand_distr::{Distribution, Normal};
+
+    #[test]
+    fn noise_estimate_sees_through_fast_signals() {
+        let mut rng = rand_pcg::Pcg64::seed_from_u64(7);
+        let sigma = 0.13e5;
+        let n = Normal::new(0.0, sigma).unwrap();
+        // a pressure swinging 20 bar at up to 200 Hz over a log chirp, plus noise
+        let x: Vec<f64> = (0..2500)
+            .map(|k| {
+                let t = k as f64 * 1e-3;
+                let phase = 2.0 * PI * 2.0 * ((t * (100f64).ln() / 2.5).exp() - 1.0)
+                    / ((100f64).ln() / 2.5);
+                100e5 + 20e5 * phase.sin() + n.sample(&mut rng)
+            })
+            .collect();
+        let est = noise(&x, quantum("P1"));
+        assert!((est / sigma - 1.0).abs() < 0.1, "{est} against {sigma}");
+        // white noise alone, and a slow signal with it
+        let white: Vec<f64> = (0..2500).map(|_| n.sample(&mut rng)).collect();
+        let est = noise(&white, quantum("P1"));
+        assert!(
+            (est / sigma - 1.0).abs() < 0.1,
+            "white: {est} against {sigma}"
+        );
+    }
+}

@@ -1,0 +1,94 @@
+//! A model run under an experiment's drive, sampled as the acquisition samples the bench:
+//! at each sample the commands are decided from what the sensors read (delayed when the
+//! `sensor_delay` effect is on) and held until the next sample.
+
+use std::collections::BTreeMap;
+
+use hbmodel::control::{run_loop, Measurement, Timing, COMMAND_LIMIT};
+use hbmodel::{Params, Simulation};
+
+use super::analysis::sensor_range;
+use super::data::{Drive, Experiment, Measured};
+
+/// Simulated samples, aligned with the measured time base.
+#[derive(Debug, Clone, PartialEq)]
+pub struct Traces {
+    pub time: Vec<f64>,
+    /// y, P1, P2 as sampled, u1, u2 as applied.
+    pub signals: BTreeMap<&'static str, Vec<f64>>,
+}
+
+impl Traces {
+    pub fn get(&self, name: &str) -> Option<&[f64]> {
+        self.signals.get(name).map(Vec::as_slice)
+    }
+}
+
+/// Run `params` (with the experiment's operating point) for `n` samples of `period`,
+/// asking `command(k, sensed)` for the commands at each sample; returns what was sensed
+/// and applied at each sample.
+pub fn run(
+    params: &Params,
+    experiment: &Experiment,
+    n: usize,
+    period: f64,
+    command: &mut dyn FnMut(usize, &Measurement) -> [f64; 2],
+) -> Result<Vec<(Measurement, [f64; 2])>, String> {
+    let mut p = params.clone();
+    experiment.apply(&mut p);
+    let mut sim = Simulation::new(&p).map_err(|e| e.to_string())?;
+    let mut out = Vec::with_capacity(n);
+    let timing = Timing {
+        period,
+        substeps: 1,
+        computation_delay: 0.0,
+    };
+    let mut decide = |t: f64, sensed: &Measurement, _exact: &hbmodel::Outputs| {
+        let k = (t / period).round() as usize;
+        let u = command(k, sensed).map(|u| u.clamp(-COMMAND_LIMIT, COMMAND_LIMIT));
+        out.push((*sensed, u));
+        u
+    };
+    run_loop(&mut sim, &mut decide, &|_| 0.0, n as f64 * period, &timing)
+        .map_err(|e| format!("simulation failed: {e}"))?;
+    Ok(out)
+}
+
+/// The model under the measured experiment's drive.
+pub fn simulate(params: &Params, e: &Experiment, m: &Measured) -> Result<Traces, String> {
+    let n = m.time.len();
+    let period = m.period();
+    let samples = match &e.drive {
+        Drive::Proportional { kp, reference } => {
+            let r = m.get(reference).ok_or("no reference column")?;
+            run(params, e, n, period, &mut |k, s| {
+                let u = kp * (r[k.min(n - 1)] - s.y);
+                [u, -u]
+            })?
+        }
+        Drive::OpenLoop => {
+            let (u1, u2) = (m.get("u1").ok_or("no u1")?, m.get("u2").ok_or("no u2")?);
+            run(params, e, n, period, &mut |k, _| {
+                let k = k.min(n - 1);
+                [u1[k], u2[k]]
+            })?
+        }
+    };
+    let command = |i: usize| samples.iter().map(|s| s.1[i]).collect();
+    // read as the acquisition would: a value beyond a sensor's span saturates
+    let sensed = |name: &str, f: &dyn Fn(&Measurement) -> f64| -> Vec<f64> {
+        let [lo, hi] = sensor_range(name);
+        samples.iter().map(|s| f(&s.0).clamp(lo, hi)).collect()
+    };
+    let signals = BTreeMap::from([
+        ("y", sensed("y", &|m| m.y)),
+        ("P1", sensed("P1", &|m| m.p1)),
+        ("P2", sensed("P2", &|m| m.p2)),
+        ("u1", command(0)),
+        ("u2", command(1)),
+    ]);
+    Ok(Traces {
+        time: m.time.clone(),
+        signals,
+    })
+}

@@ -1,0 +1,122 @@
+//! The effects the workflow may add, with the registry parameters its fits adjust and the
+//! range `hbench hide` draws them from. Bounds of the fits are the registry's physical
+//! bounds; the plausible ranges are narrower: what a real bench of this kind would show.
+
+use hbmodel::effects::Effect;
+
+/// A parameter a candidate's fit adjusts.
+#[derive(Debug, Clone, Copy, PartialEq)]
+pub struct Fitted {
+    pub path: &'static str,
+    /// What `hbench hide` draws from (a plausible bench), in the registry's unit.
+    pub plausible: [f64; 2],
+    /// Drawn and fitted on a log scale (quantities spanning decades).
+    pub log: bool,
+    /// The drawn value takes either sign (offsets).
+    pub either_sign: bool,
+}
+
+/// An effect the workflow can add, and what its missing shows in the data.
+#[derive(Debug, Clone, PartialEq)]
+pub struct Candidate {
+    pub effect: Effect,
+    pub fitted: Vec<Fitted>,
+    pub signature: &'static str,
+}
+
+const fn lin(path: &'static str, plausible: [f64; 2]) -> Fitted {
+    Fitted {
+        path,
+        plausible,
+        log: false,
+        either_sign: false,
+    }
+}
+
+const fn log(path: &'static str, plausible: [f64; 2]) -> Fitted {
+    Fitted {
+        path,
+        plausible,
+        log: true,
+        either_sign: false,
+    }
+}
+
+/// Payload and temperature are operating conditions an experiment states, not missing
+/// physics: they are never proposed.
+pub fn candidate(e: Effect) -> Option<Candidate> {
+    let (fitted, signature) = match e {
+        // Table 3.3 volumes +-50 %: unknown passage details and hoses
+        Effect::ManifoldVolume => (
+            vec![lin("manifold.volume_scale", [0.6, 1.6])],
+            "softer oil columns: the hydraulic resonance moves down, the loop lags more near it",
+        ),
+        Effect::ManifoldInertia => (
+            vec![lin("manifold.inertia_scale", [0.6, 1.6])],
+            "oil mass moving with the piston: a lower, sharper resonance",
+        ),
+        Effect::ManifoldLosses => (
+            vec![lin("manifold.loss_scale", [0.5, 4.0])],
+            "pressure drops growing with flow squared: slower fast moves, damped resonance",
+        ),
+        // 0.2-3 % free air at atmospheric pressure (appendix A)
+        Effect::EntrainedAir => (
+            vec![log("fluid.air_fraction", [0.002, 0.03])],
+            "bulk modulus falling at low pressure: the resonance moves down, more at low chamber pressure",
+        ),
+        // a D765 leaks 0.5-3 L/min at null (catalogue; Fig. 2.10(a))
+        Effect::InternalLeakage => (
+            vec![log("sv1.null_leakage", [0.4e-12, 3e-12])],
+            "flow between chambers and to tank at null: pressures sag, the loop is more damped, a load needs a standing error",
+        ),
+        // a few tens of newtons on hydrostatic bearings; 150 N for worn seals
+        Effect::DryFriction => (
+            vec![lin("friction.coulomb", [20.0, 150.0])],
+            "a force of constant size against the motion: stick at reversals, small static errors",
+        ),
+        // 400 N.s/m in section 4.4; 150-2000 over oil temperature and bearing state
+        Effect::ViscousFriction => (
+            vec![log("actuator.viscous_friction", [150.0, 2000.0])],
+            "force growing with speed: the resonance is damped, fast moves lag",
+        ),
+        // spool bandwidth 190-560 Hz at small signal (D765 catalogue, chapter 2)
+        Effect::ValveDynamics => (
+            vec![
+                lin("sv1.natural_frequency", [1200.0, 3500.0]),
+                lin("sv1.damping", [0.4, 0.9]),
+            ],
+            "a second-order lag of the flow: phase falling faster than a delay near the valve's bandwidth",
+        ),
+        // null bias of a few percent of rated input, flow gains +-15 %
+        Effect::ValveAsymmetry => (
+            vec![
+                Fitted {
+                    either_sign: true,
+                    ..lin("sv2.null_bias", [0.05, 0.3])
+                },
+                lin("sv2.rated_flow", [2.7e-4, 3.6e-4]),
+            ],
+            "SV2 unlike SV1: a static offset of position and pressures, unequal gains in the two directions",
+        ),
+        // 0.2-2 ms between the physical signal and its sample (section 4.4: 0.5 ms)
+        Effect::SensorDelay => (
+            vec![lin("sensors.delay", [0.2e-3, 2e-3])],
+            "phase lag growing linearly with frequency, no change of gain",
+        ),
+        Effect::Payload | Effect::Temperature => return None,
+    };
+    Some(Candidate {
+        effect: e,
+        fitted,
+        signature,
+    })
+}
+
+/// Every effect the workflow may propose, in registry order.
+pub fn all() -> Vec<Candidate> {
+    Effect::ALL.into_iter().filter_map(candidate).collect()
+}
+
+pub fn names() -> Vec<&'static str> {
+    all().iter().map(|c| c.effect.name()).collect()
+}

@@ -1,0 +1,287 @@
+//! Fitting a candidate effect's parameters to the measured data by Levenberg-Marquardt
+//! (the `levenberg-marquardt` crate, the method the thesis used), within the registry's
+//! physical bounds.
+//!
+//! The residuals are the differences between the simulated and the measured samples of
+//! y, P1 and P2, each divided by its noise level estimated from the data, so that a model
+//! explaining the data leaves residuals of RMS 1 (the noise floor).
+
+use hbmodel::effects::{param, Effect};
+use hbmodel::Params;
+use levenberg_marquardt::{LeastSquaresProblem, LevenbergMarquardt};
+use nalgebra::{DMatrix, DVector, Dyn, Owned};
+
+use super::data::{Experiment, Measured};
+use super::drive::simulate;
+use super::effects::{Candidate, Fitted};
+
+/// The data as the fits see it: measurement, experiment, noise per compared signal.
+pub struct Target<'a> {
+    pub measured: &'a Measured,
+    pub experiment: &'a Experiment,
+    /// (signal, noise standard deviation) of the compared signals present in the data.
+    pub noise: Vec<(&'static str, f64)>,
+}
+
+/// Residual value given to a simulation that fails: far worse than any fit, so the
+/// optimiser steps back, but finite.
+const FAILED_RESIDUAL: f64 = 1e3;
+
+impl Target<'_> {
+    /// Noise-normalised residuals of a model; None if the simulation fails.
+    pub fn residuals(&self, p: &Params) -> Option<DVector<f64>> {
+        let sim = simulate(p, self.experiment, self.measured).ok()?;
+        let n = self.measured.time.len();
+        let mut r = Vec::with_capacity(n * self.noise.len());
+        for (name, sigma) in &self.noise {
+            let (m, s) = (self.measured.get(name)?, sim.get(name)?);
+            r.extend(m.iter().zip(s).map(|(m, s)| (s - m) / sigma));
+        }
+        r.iter()
+            .all(|x| x.is_finite())
+            .then(|| DVector::from_vec(r))
+    }
+
+    pub fn len(&self) -> usize {
+        self.measured.time.len() * self.noise.len()
+    }
+
+    /// RMS of the normalised residuals: 1 at the noise floor.
+    pub fn gap(&self, p: &Params) -> f64 {
+        self.residuals(p).map_or(f64::INFINITY, |r| {
+            (r.norm_squared() / r.len() as f64).sqrt()
+        })
+    }
+}
+
+/// A bounded parameter seen by the optimiser as an unbounded z: theta = lo + (hi - lo)
+/// s(z), s the logistic, on a log scale for the log parameters.
+struct Coordinate {
+    fitted: Fitted,
+    lo: f64,
+    hi: f64,
+}
+
+impl Coordinate {
+    fn new(f: &Fitted) -> Self {
+        let spec = param(f.path).expect("candidates use registry parameters");
+        let (mut lo, hi) = (spec.min, spec.max);
+        if f.log {
+            // a log scale needs a positive floor: three decades under the plausible range
+            lo = lo.max(f.plausible[0] * 1e-3);
+        }
+        Coordinate { fitted: *f, lo, hi }
+    }
+
+    fn scale(&self, v: f64) -> (f64, f64, f64) {
+        if self.fitted.log {
+            (self.lo.ln(), self.hi.ln(), v.max(self.lo).ln())
+        } else {
+            (self.lo, self.hi, v)
+        }
+    }
+
+    fn value(&self, z: f64) -> f64 {
+        let (a, b, _) = self.scale(self.lo);
+        let w = a + (b - a) / (1.0 + (-z).exp());
+        if self.fitted.log {
+            w.exp()
+        } else {
+            w
+        }
+    }
+
+    fn coordinate(&self, v: f64) -> f64 {
+        let (a, b, w) = self.scale(v);
+        let s = ((w - a) / (b - a)).clamp(1e-6, 1.0 - 1e-6);
+        (s / (1.0 - s)).ln()
+    }
+}
+
+struct Problem<'a> {
+    target: &'a Target<'a>,
+    base: Params,
+    coords: Vec<Coordinate>,
+    z: DVector<f64>,
+    r: DVector<f64>,
+}
+
+impl Problem<'_> {
+    fn params_at(&self, z: &DVector<f64>) -> Params {
+        let mut p = self.base.clone();
+        for (c, zi) in self.coords.iter().zip(z.iter()) {
+            param(c.fitted.path)
+                .expect("registered")
+                .set(&mut p, c.value(*zi));
+        }
+        p
+    }
+
+    fn eval(&self, z: &DVector<f64>) -> DVector<f64> {
+        let n = self.target.len();
+        self.target
+            .residuals(&self.params_at(z))
+            .unwrap_or_else(|| DVector::from_element(n, FAILED_RESIDUAL))
+    }
+}
+
+/// Finite-difference step in the unbounded coordinate: about 1 % of a parameter's range
+/// near the middle, large enough to rise above the integrator's tolerance.
+const FD_STEP: f64 = 0.05;
+
+impl LeastSquaresProblem<f64, Dyn, Dyn> for Problem<'_> {
+    type ParameterStorage = Owned<f64, Dyn>;
+    type ResidualStorage = Owned<f64, Dyn>;
+    type JacobianStorage = Owned<f64, Dyn, Dyn>;
+
+    fn set_params(&mut self, z: &DVector<f64>) {
+        self.z = z.clone();
+        self.r = self.eval(&z.clone());
+    }
+
+    fn params(&self) -> DVector<f64> {
+        self.z.clone()
+    }
+
+    fn residuals(&self) -> Option<DVector<f64>> {
+        Some(self.r.clone())
+    }
+
+    fn jacobian(&self) -> Option<DMatrix<f64>> {
+        // the trait gives &self; the columns are independent simulations
+        let mut j = DMatrix::zeros(self.r.len(), self.z.len());
+        for k in 0..self.z.len() {
+            let mut z = self.z.clone();
+            z[k] += FD_STEP;
+            let r = self
+                .target
+                .residuals(&self.params_at(&z))
+                .unwrap_or_else(|| DVector::from_element(self.r.len(), FAILED_RESIDUAL));
+            j.set_column(k, &((r - &self.r) / FD_STEP));
+        }
+        Some(j)
+    }
+}
+
+/// A candidate fitted to the data.
+#[derive(Debug, Clone)]
+pub struct Fit {
+    pub effect: Effect,
+    pub params: Params,
+    /// (registry path, fitted value)
+    pub values: Vec<(&'static str, f64)>,
+    /// Sum of squared normalised residuals after the fit.
+    pub chi2: f64,
+    pub gap: f64,
+}
+
+/// Points of the first parameter's plausible range tried before the optimiser starts: the
+/// residual is far from quadratic in a resonance's position, so a local method needs a
+/// start in the right basin.
+const SCREEN_POINTS: usize = 5;
+/// Optimiser budget (the crate's patience: evaluations per parameter).
+const PATIENCE: usize = 8;
+
+/// Switch `c` on in `base` (with what it requires) and fit its parameters, together with
+/// `carried`: the parameters of the effects added before, refitted jointly so that an
+/// earlier effect that took up part of this one's signature gives it back.
+pub fn fit(target: &Target, base: &Params, c: &Candidate, carried: &[Fitted]) -> Fit {
+    let mut start = base.clone();
+    start.effects.set(c.effect, true);
+    for &needed in c.effect.spec().requires {
+        start.effects.set(needed, true);
+    }
+    let coords: Vec<Coordinate> = c
+        .fitted
+        .iter()
+        .chain(carried)
+        .map(Coordinate::new)
+        .collect();
+    let mut problem = Problem {
+        target,
+        base: start,
+        z: DVector::zeros(coords.len()),
+        r: DVector::zeros(0),
+        coords,
+    };
+    // screen the first parameter over its plausible range, the others at their defaults
+    let defaults: Vec<f64> = problem
+        .coords
+        .iter()
+        .map(|c| {
+            let v = param(c.fitted.path).expect("registered").get(&problem.base);
+            c.coordinate(if c.fitted.log { v.max(c.lo) } else { v })
+        })
+        .collect();
+    let first = problem.coords[0].fitted;
+    let mut best: Option<(f64, DVector<f64>)> = None;
+    let signs: &[f64] = if first.either_sign {
+        &[1.0, -1.0]
+    } else {
+        &[1.0]
+    };
+    for sign in signs {
+        for i in 0..SCREEN_POINTS {
+            let u = i as f64 / (SCREEN_POINTS - 1) as f64;
+            let [lo, hi] = first.plausible;
+            let v = if first.log {
+                lo * (hi / lo).powf(u)
+            } else {
+                lo + (hi - lo) * u
+            };
+            let mut z = DVector::from_vec(defaults.clone());
+            z[0] = problem.coords[0].coordinate(sign * v);
+            let chi2 = problem.eval(&z).norm_squared();
+            if best.as_ref().is_none_or(|(b, _)| chi2 < *b) {
+                best = Some((chi2, z));
+            }
+        }
+    }
+    let (_, z0) = best.expect("at least one screening point");
+    problem.set_params(&z0);
+    let (problem, _report) = LevenbergMarquardt::new()
+        .with_patience(PATIENCE)
+        .minimize(problem);
+    let chi2 = problem.r.norm_squared();
+    let params = problem.params_at(&problem.z);
+    let values = problem
+        .coords
+        .iter()
+        .zip(problem.z.iter())
+        .map(|(c, z)| (c.fitted.path, c.value(*z)))
+        .collect();
+    Fit {
+        effect: c.effect,
+        gap: (chi2 / problem.r.len().max(1) as f64).sqrt(),
+        chi2,
+        params,
+        values,
+    }
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    #[test]
+    fn coordinates_stay_in_bounds_and_invert() {
+        for f in super::super::effects::all()
+            .iter()
+            .flat_map(|c| c.fitted.clone())
+        {
+            let c = Coordinate::new(&f);
+            for z in [-40.0, -3.0, 0.0, 2.0, 40.0] {
+                let v = c.value(z);
+                let slack = 1e-12 * (c.hi - c.lo);
+                assert!(v >= c.lo - slack && v <= c.hi + slack, "{} {v}", f.path);
+            }
+            let mid = 0.5 * (f.plausible[0] + f.plausible[1]);
+            let back = c.value(c.coordinate(mid));
+            assert!(
+                (back / mid - 1.0).abs() < 1e-9,
+                "{}: {mid} -> {back}",
+                f.path
+            );
+        }
+    }
+}

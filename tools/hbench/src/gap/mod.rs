@@ -1,0 +1,276 @@
+//! `hbench gap`: compare the model with measured data, find where they disagree, name the
+//! missing physical effect, add it with fitted parameters and show the gap shrink; repeat
+//! until the data are explained within their noise or no candidate helps.
+//!
+//! The gap is the RMS of the differences between measured and simulated samples of y, P1
+//! and P2, each in units of its own noise level (estimated from the data): 1 is the noise
+//! floor. A candidate effect wins when its fit lowers the chi-square (the sum of squared
+//! normalised differences) by more than the Bayesian information criterion's price of its
+//! parameters, k ln N, and by more than MIN_IMPROVEMENT of the gap.
+
+pub mod analysis;
+pub mod blind;
+pub mod data;
+pub mod drive;
+pub mod effects;
+pub mod fit;
+pub mod hide;
+mod report;
+
+use std::path::{Path, PathBuf};
+
+use hbmodel::Params;
+use serde::Serialize;
+
+use analysis::{localise, noise, quantum, Localisation};
+use data::{load_experiment, load_measured, Experiment, Measured, COMPARED};
+use drive::{simulate, Traces};
+use fit::{fit, Fit, Target};
+
+/// A gap at or below this is reported as the noise floor: the noise estimate itself is
+/// uncertain by a few percent. The candidates are still tried there: an effect that is
+/// small against the noise can still pay its information-criterion price.
+pub const NOISE_FLOOR_GAP: f64 = 1.1;
+/// The least relative improvement of the gap for which an effect is worth adding, on top
+/// of its information-criterion price: a guard against the residual's samples not being
+/// as independent as the criterion assumes.
+pub const MIN_IMPROVEMENT: f64 = 0.01;
+/// At most this many effects are added in one run.
+pub const MAX_STEPS: usize = 4;
+
+/// One accepted effect.
+#[derive(Debug, Clone, Serialize)]
+pub struct Step {
+    pub effect: String,
+    pub parameters: serde_json::Map<String, serde_json::Value>,
+    pub gap_before: f64,
+    pub gap_after: f64,
+    /// Every candidate's fitted gap and score (chi-square drop minus k ln N).
+    pub candidates: Vec<Scored>,
+}
+
+#[derive(Debug, Clone, Serialize)]
+pub struct Scored {
+    pub effect: String,
+    pub gap: f64,
+    pub score: f64,
+    pub parameters: serde_json::Map<String, serde_json::Value>,
+}
+
+/// The workflow's result.
+pub struct Outcome {
+    pub steps: Vec<Step>,
+    pub initial_gap: f64,
+    pub remaining_gap: f64,
+    pub noise: Vec<(&'static str, f64)>,
+    pub model: Params,
+    pub start: Params,
+    pub first: Localisation,
+    pub last: Localisation,
+    pub before: Traces,
+    pub after: Traces,
+    pub verdict: String,
+}
+
+/// Noise of every compared signal the data hold.
+pub fn noise_levels(m: &Measured) -> Vec<(&'static str, f64)> {
+    COMPARED
+        .iter()
+        .filter_map(|&s| m.get(s).map(|x| (s, noise(x, quantum(s)))))
+        .collect()
+}
+
+fn json_values(values: &[(&'static str, f64)]) -> serde_json::Map<String, serde_json::Value> {
+    values
+        .iter()
+        .map(|(k, v)| (k.to_string(), serde_json::json!(v)))
+        .collect()
+}
+
+/// Fit every candidate in parallel on all cores, with a progress bar when asked.
+fn fit_all(
+    target: &Target,
+    model: &Params,
+    carried: &[effects::Fitted],
+    progress: bool,
+) -> Vec<Fit> {
+    // one effect at a time: an effect that needs others (manifold losses need the
+    // passages' volumes and inertia) waits until they are in the model
+    let candidates: Vec<_> = effects::all()
+        .into_iter()
+        .filter(|c| !model.has(c.effect))
+        .filter(|c| c.effect.spec().requires.iter().all(|r| model.has(*r)))
+        .collect();
+    let bar = if progress {
+        indicatif::ProgressBar::new(candidates.len() as u64)
+    } else {
+        indicatif::ProgressBar::hidden()
+    };
+    if let Ok(style) = indicatif::ProgressStyle::with_template(
+        "fitting {bar:30} {pos}/{len} candidates {elapsed} {msg}",
+    ) {
+        bar.set_style(style);
+    }
+    let next = std::sync::atomic::AtomicUsize::new(0);
+    let fits = std::sync::Mutex::new(Vec::new());
+    let cores = std::thread::available_parallelism().map_or(1, |n| n.get());
+    std::thread::scope(|s| {
+        for _ in 0..cores.min(candidates.len()) {
+            s.spawn(|| loop {
+                let k = next.fetch_add(1, std::sync::atomic::Ordering::Relaxed);
+                let Some(c) = candidates.get(k) else { break };
+                let f = fit(target, model, c, carried);
+                bar.set_message(c.effect.name());
+                bar.inc(1);
+                fits.lock().expect("no panic holding the lock").push(f);
+            });
+        }
+    });
+    bar.finish_and_clear();
+    let mut fits = fits.into_inner().expect("threads joined");
+    fits.sort_by_key(|f| f.effect as usize);
+    fits
+}
+
+/// Run the workflow on loaded data.
+pub fn run(
+    start: &Params,
+    e: &Experiment,
+    m: &Measured,
+    progress: bool,
+) -> Result<Outcome, String> {
+    let noise = noise_levels(m);
+    if noise.is_empty() {
+        return Err("the data hold none of y, P1, P2 to compare with".into());
+    }
+    let target = Target {
+        measured: m,
+        experiment: e,
+        noise: noise.clone(),
+    };
+    let n = target.len() as f64;
+    let mut model = start.clone();
+    let before = simulate(&model, e, m)?;
+    let first = localise(m, e, &before, &noise);
+    let initial_gap = target.gap(&model);
+    let mut gap = initial_gap;
+    let mut steps = Vec::new();
+    let mut loc = first.clone();
+    let mut carried: Vec<effects::Fitted> = Vec::new();
+    let verdict = loop {
+        if steps.len() == MAX_STEPS {
+            break format!("stopped after {MAX_STEPS} effects with the gap at {gap:.2}");
+        }
+        let fits = fit_all(&target, &model, &carried, progress);
+        let chi2 = gap * gap * n;
+        let scored: Vec<(Scored, &Fit)> = fits
+            .iter()
+            .map(|f| {
+                let k = f.values.len() as f64;
+                let s = Scored {
+                    effect: f.effect.name().into(),
+                    gap: f.gap,
+                    score: chi2 - f.chi2 - k * n.ln(),
+                    parameters: json_values(&f.values),
+                };
+                (s, f)
+            })
+            .collect();
+        let best = scored
+            .iter()
+            .filter(|(s, f)| s.score > 0.0 && f.gap < (1.0 - MIN_IMPROVEMENT) * gap)
+            .max_by(|a, b| a.0.score.total_cmp(&b.0.score));
+        let Some((_, winner)) = best else {
+            break if gap <= NOISE_FLOOR_GAP {
+                format!("the model explains the data within their noise (gap {gap:.2}, noise floor 1); no effect adds more than its complexity price")
+            } else {
+                format!(
+                    "no candidate effect lowers the gap ({gap:.2}) by more than {:.0} % and its complexity price",
+                    MIN_IMPROVEMENT * 100.0
+                )
+            };
+        };
+        steps.push(Step {
+            effect: winner.effect.name().into(),
+            parameters: json_values(&winner.values),
+            gap_before: gap,
+            gap_after: winner.gap,
+            candidates: scored.iter().map(|(s, _)| s.clone()).collect(),
+        });
+        model = winner.params.clone();
+        if let Some(c) = effects::candidate(winner.effect) {
+            carried.extend(c.fitted);
+        }
+        gap = winner.gap;
+        loc = localise(m, e, &simulate(&model, e, m)?, &noise);
+    };
+    let after = simulate(&model, e, m)?;
+    Ok(Outcome {
+        steps,
+        initial_gap,
+        remaining_gap: gap,
+        noise,
+        model,
+        start: start.clone(),
+        first,
+        last: loc,
+        before,
+        after,
+        verdict,
+    })
+}
+
+/// `hbench gap`.
+pub fn main(
+    data: &Path,
+    experiment: &Path,
+    model: Option<&Path>,
+    out: &Path,
+) -> Result<(), String> {
+    let e = load_experiment(experiment)?;
+    let m = load_measured(data, &e)?;
+    let start = match model {
+        Some(f) => Params::load(f).map_err(|err| err.to_string())?,
+        None => Params::default(),
+    };
+    std::fs::create_dir_all(out)
+        .map_err(|err| format!("cannot create {}: {err}", out.display()))?;
+    let fitted = out.join("fitted_model.toml");
+    let inputs: Vec<PathBuf> = [Some(data), Some(experiment), model]
+        .into_iter()
+        .flatten()
+        .filter_map(|p| p.canonicalize().ok())
+        .collect();
+    for f in ["fitted_model.toml", "report.json", "report.md"] {
+        let target = out.join(f);
+        if target.canonicalize().is_ok_and(|t| inputs.contains(&t)) {
+            return Err(format!(
+                "{} is an input: choose another --out",
+                target.display()
+            ));
+        }
+    }
+    let outcome = run(&start, &e, &m, true)?;
+    std::fs::write(&fitted, outcome.model.to_toml())
+        .map_err(|err| format!("cannot write {}: {err}", fitted.display()))?;
+    report::write(out, &outcome, &e, &m)?;
+    for step in &outcome.steps {
+        println!(
+            "added {}: gap {:.2} -> {:.2} ({})",
+            step.effect,
+            step.gap_before,
+            step.gap_after,
+            step.parameters
+                .iter()
+                .map(|(k, v)| format!("{k} = {v}"))
+                .collect::<Vec<_>>()
+                .join(", ")
+        );
+    }
+    println!("{}", outcome.verdict);
+    println!(
+        "wrote {0}/report.md, {0}/report.json, {0}/fitted_model.toml and the figures",
+        out.display()
+    );
+    Ok(())
+}

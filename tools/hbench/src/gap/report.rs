@@ -1,0 +1,234 @@
+//! The workflow's report: `report.md` for a person (with SVG figures), `report.json` for a
+//! machine.
+
+use std::fmt::Write as _;
+use std::path::Path;
+
+use serde_json::json;
+
+use super::analysis::describe;
+use super::data::{Experiment, Measured};
+use super::effects::candidate;
+use super::Outcome;
+use crate::plot::{stacked, time_traces, Line, Panel};
+
+fn line(label: &str, t: &[f64], v: &[f64], scale: f64) -> Line {
+    Line {
+        label: label.into(),
+        points: t.iter().zip(v).map(|(t, v)| (*t, v * scale)).collect(),
+    }
+}
+
+fn figures(out: &Path, o: &Outcome, m: &Measured) -> Result<Vec<String>, String> {
+    let mut files = Vec::new();
+    let t = &m.time;
+    let mut traces = Vec::new();
+    let mut residuals = Vec::new();
+    for (name, _) in &o.noise {
+        let (unit, scale) = if *name == "y" {
+            ("mm", 1e3)
+        } else {
+            ("bar", 1e-5)
+        };
+        let (Some(meas), Some(b), Some(a)) = (m.get(name), o.before.get(name), o.after.get(name))
+        else {
+            continue;
+        };
+        traces.push(Panel {
+            title: format!("{name} ({unit})"),
+            lines: vec![
+                line("measured", t, meas, scale),
+                line("model before", t, b, scale),
+                line("model after", t, a, scale),
+            ],
+        });
+        let diff = |s: &[f64]| meas.iter().zip(s).map(|(m, s)| m - s).collect::<Vec<_>>();
+        residuals.push(Panel {
+            title: format!("{name}: measured - model ({unit})"),
+            lines: vec![
+                line("before", t, &diff(b), scale),
+                line("after", t, &diff(a), scale),
+            ],
+        });
+    }
+    let mut csv = String::from("time");
+    let names: Vec<&str> = o.noise.iter().map(|(n, _)| *n).collect();
+    for n in &names {
+        let _ = write!(csv, ",{n}_measured,{n}_before,{n}_after");
+    }
+    csv.push('\n');
+    for (k, tk) in t.iter().enumerate() {
+        let _ = write!(csv, "{tk:.6}");
+        for n in &names {
+            for s in [m.get(n), o.before.get(n), o.after.get(n)] {
+                let _ = write!(csv, ",{:e}", s.map_or(f64::NAN, |v| v[k]));
+            }
+        }
+        csv.push('\n');
+    }
+    std::fs::write(out.join("traces.csv"), csv).map_err(|err| err.to_string())?;
+    time_traces(&out.join("traces.svg"), "Measured and simulated", &traces)?;
+    time_traces(
+        &out.join("residuals.svg"),
+        "Residuals before and after",
+        &residuals,
+    )?;
+    files.extend(["traces.svg".to_string(), "residuals.svg".to_string()]);
+    if let (Some(r0), Some(r1)) = (&o.first.response, &o.last.response) {
+        let pick = |v: &[f64]| -> Vec<(f64, f64)> {
+            r0.freq
+                .iter()
+                .zip(v)
+                .zip(&r0.coherent)
+                .filter(|((f, _), ok)| **ok && **f >= 1.0)
+                .map(|((f, v), _)| (*f, *v))
+                .collect()
+        };
+        let compared = |title: &str, measured: &[f64], before: &[f64], after: &[f64]| Panel {
+            title: title.into(),
+            lines: [
+                ("measured", measured),
+                ("model before", before),
+                ("model after", after),
+            ]
+            .into_iter()
+            .map(|(label, v)| Line {
+                label: label.into(),
+                points: pick(v),
+            })
+            .collect(),
+        };
+        let panels = [
+            compared(
+                "|y / input| (dB)",
+                &r0.measured_db,
+                &r0.simulated_db,
+                &r1.simulated_db,
+            ),
+            compared(
+                "phase (deg)",
+                &r0.measured_deg,
+                &r0.simulated_deg,
+                &r1.simulated_deg,
+            ),
+        ];
+        let mut csv = String::from(
+            "frequency_hz,coherent,measured_db,measured_deg,before_db,before_deg,after_db,after_deg\n",
+        );
+        for k in 0..r0.freq.len() {
+            let _ = writeln!(
+                csv,
+                "{},{},{},{},{},{},{},{}",
+                r0.freq[k],
+                r0.coherent[k],
+                r0.measured_db[k],
+                r0.measured_deg[k],
+                r0.simulated_db[k],
+                r0.simulated_deg[k],
+                r1.simulated_db[k],
+                r1.simulated_deg[k]
+            );
+        }
+        std::fs::write(out.join("response.csv"), csv).map_err(|err| err.to_string())?;
+        stacked(
+            &out.join("response.svg"),
+            "Frequency response estimates (coherent bins)",
+            "frequency (Hz)",
+            &panels,
+        )?;
+        files.push("response.svg".into());
+    }
+    Ok(files)
+}
+
+pub fn write(out: &Path, o: &Outcome, e: &Experiment, m: &Measured) -> Result<(), String> {
+    let figures = figures(out, o, m)?;
+    let noise: serde_json::Map<_, _> = o
+        .noise
+        .iter()
+        .map(|(k, v)| (k.to_string(), json!(v)))
+        .collect();
+    let report = json!({
+        "steps": o.steps,
+        "initial_gap": o.initial_gap,
+        "remaining_gap": o.remaining_gap,
+        "noise_floor": 1.0,
+        "noise_floor_gap": super::NOISE_FLOOR_GAP,
+        "noise": noise,
+        "verdict": o.verdict,
+        "localisation_before": o.first,
+        "localisation_after": o.last,
+        "figures": figures,
+    });
+    let json_text = serde_json::to_string_pretty(&report).map_err(|err| err.to_string())?;
+    std::fs::write(out.join("report.json"), json_text).map_err(|err| err.to_string())?;
+
+    let mut md = String::from("# Model-gap report\n\n");
+    let _ = writeln!(
+        md,
+        "Experiment: mode {}, {:?} drive, {} samples at {:.1} ms. Starting model effects: {}.\n",
+        e.mode,
+        e.drive,
+        m.time.len(),
+        m.period() * 1e3,
+        list(o.start.effects.active().map(|x| x.name()))
+    );
+    let _ = writeln!(
+        md,
+        "The gap is the RMS of measured minus simulated y, P1, P2, each in units of its noise \
+         (estimated from the data): 1 is the noise floor.\n\n**Result:** gap {:.2} -> {:.2}. {}.\n",
+        o.initial_gap, o.remaining_gap, o.verdict
+    );
+    md.push_str("## Where the model disagreed with the data\n\n");
+    for s in describe(&o.first) {
+        let _ = writeln!(md, "- {s}");
+    }
+    for (i, step) in o.steps.iter().enumerate() {
+        let _ = writeln!(md, "\n## Step {}: add `{}`\n", i + 1, step.effect);
+        if let Some(c) = hbmodel::Effect::from_name(&step.effect).and_then(candidate) {
+            let _ = writeln!(md, "Signature of this effect: {}.\n", c.signature);
+        }
+        let _ = writeln!(
+            md,
+            "Fitted: {}. Gap {:.2} -> {:.2}.\n\n| candidate | gap after fit | score (chi2 drop - k ln N) | parameters |\n|---|---|---|---|",
+            step.parameters.iter().map(|(k, v)| format!("{k} = {v}")).collect::<Vec<_>>().join(", "),
+            step.gap_before,
+            step.gap_after
+        );
+        let mut c = step.candidates.clone();
+        c.sort_by(|a, b| b.score.total_cmp(&a.score));
+        for s in c {
+            let _ = writeln!(
+                md,
+                "| {} | {:.2} | {:.0} | {} |",
+                s.effect,
+                s.gap,
+                s.score,
+                s.parameters
+                    .iter()
+                    .map(|(k, v)| format!("{k} = {v}"))
+                    .collect::<Vec<_>>()
+                    .join(", ")
+            );
+        }
+    }
+    md.push_str("\n## After\n\n");
+    for s in describe(&o.last) {
+        let _ = writeln!(md, "- {s}");
+    }
+    md.push_str("\n## Figures\n\n");
+    for f in &figures {
+        let _ = writeln!(md, "![{f}]({f})\n");
+    }
+    md.push_str("The fitted parameter file is `fitted_model.toml`.\n");
+    std::fs::write(out.join("report.md"), md).map_err(|err| err.to_string())
+}
+
+fn list<'a>(names: impl Iterator<Item = &'a str>) -> String {
+    let v: Vec<_> = names.collect();
+    if v.is_empty() {
+        "none (the control model (II.1))".into()
+    } else {
+        v.join(", ")
+    }
+}
