@@ -173,6 +173,9 @@ enum Command {
         /// Hide every pair of the effects at once instead of one at a time
         #[arg(long)]
         pairs: bool,
+        /// Only tabulate the cases of these blind.json files again (no simulation)
+        #[arg(long)]
+        summarise: Vec<PathBuf>,
         #[arg(long, default_value = "out/blind")]
         out: PathBuf,
     },
@@ -279,6 +282,7 @@ fn main() -> ExitCode {
             experiments,
             seeds,
             pairs,
+            summarise,
             out,
         } => {
             let kinds = if experiments.is_empty() {
@@ -286,7 +290,11 @@ fn main() -> ExitCode {
             } else {
                 experiments
             };
-            gap::blind::main(&effects, &kinds, seeds, pairs, &out)
+            if summarise.is_empty() {
+                gap::blind::main(&effects, &kinds, seeds, pairs, &out)
+            } else {
+                gap::blind::summarise(&summarise, &out)
+            }
         }
         Command::Bench { seconds, json } => bench::main(seconds, json),
         Command::Cosim(args) => cosim::main(args),

@@ -14,7 +14,7 @@ use serde::Serialize;
 
 use super::hide::{measure, truth, Kind};
 
-#[derive(Debug, Clone, Serialize)]
+#[derive(Debug, Clone, Serialize, serde::Deserialize)]
 pub struct Case {
     pub hidden: Vec<String>,
     pub experiment: String,
@@ -146,7 +146,13 @@ pub fn table(cases: &[Case]) -> String {
             sel.len(),
             rate(&sel, Case::first_correct),
             rate(&sel, Case::all_found),
-            rate(&sel, |c| c.magnitude_error().is_some_and(|e| e <= 0.2)),
+            rate(
+                &sel.iter()
+                    .copied()
+                    .filter(|c| !c.hidden.is_empty())
+                    .collect::<Vec<_>>(),
+                |c| c.magnitude_error().is_some_and(|e| e <= 0.2)
+            ),
             100.0 * median
         );
     };
@@ -168,6 +174,20 @@ fn write(out: &Path, cases: &[Case]) -> Result<String, String> {
     let json = serde_json::to_string_pretty(cases).map_err(|e| e.to_string())?;
     std::fs::write(out.join("blind.json"), json).map_err(|e| e.to_string())?;
     Ok(md)
+}
+
+/// Tabulate a study's blind.json again (after a change of the table, or to merge runs).
+pub fn summarise(files: &[std::path::PathBuf], out: &Path) -> Result<(), String> {
+    let mut cases: Vec<Case> = Vec::new();
+    for f in files {
+        let text = std::fs::read_to_string(f).map_err(|e| format!("{}: {e}", f.display()))?;
+        let more: Vec<Case> =
+            serde_json::from_str(&text).map_err(|e| format!("{}: {e}", f.display()))?;
+        cases.extend(more);
+    }
+    let md = write(out, &cases)?;
+    println!("{md}");
+    Ok(())
 }
 
 /// `hbench blind`.
