@@ -21,8 +21,9 @@ pub struct Case {
     pub seed: u64,
     /// Effects the workflow added, in order.
     pub named: Vec<String>,
-    /// The first hidden effect's first parameter: truth and fit.
-    pub truth: f64,
+    /// The first hidden effect's first parameter: truth and fit (none with nothing
+    /// hidden).
+    pub truth: Option<f64>,
     pub fitted: Option<f64>,
     pub initial_gap: f64,
     pub remaining_gap: f64,
@@ -42,7 +43,7 @@ impl Case {
             && (!self.hidden.is_empty() || self.named.is_empty())
     }
     pub fn magnitude_error(&self) -> Option<f64> {
-        self.fitted.map(|f| (f / self.truth - 1.0).abs())
+        Some((self.fitted? / self.truth? - 1.0).abs())
     }
     pub fn shrink(&self) -> f64 {
         // the gap above the noise floor that the added effects closed
@@ -78,7 +79,10 @@ pub fn case(hidden: &[Effect], kind: Kind, seed: u64) -> Result<Case, String> {
     let (p, drawn) = truth(&base, hidden, &mut rng);
     let (experiment, measured) = measure(&p, kind, seed)?;
     let outcome = super::run(&base, &experiment, &measured, false)?;
-    let (path, value) = drawn.first().copied().unwrap_or(("", f64::NAN));
+    let (path, value) = match drawn.first() {
+        Some((p, v)) => (*p, Some(*v)),
+        None => ("", None),
+    };
     let fitted = outcome
         .steps
         .iter()
@@ -312,7 +316,7 @@ mod tests {
                     .expect("the named effect carries its fit");
                 assert!(
                     err <= 0.2,
-                    "fitted {:?} against {}: {c:?}",
+                    "fitted {:?} against {:?}: {c:?}",
                     c.fitted,
                     c.truth
                 );
