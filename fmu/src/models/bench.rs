@@ -68,14 +68,17 @@ impl BenchFmu {
 
     /// Advance to t, recording the instants the delayed acquisition will read.
     fn advance(&mut self, t: f64) -> Result<(), String> {
-        let sim = self.sim()?;
-        let from = sim.time();
-        let first = Measurement::of(&sim.outputs());
         let delay = self.sensor_delay();
-        let mut line = self
-            .sensed
-            .take()
-            .unwrap_or_else(|| DelayLine::new(delay, from, first));
+        let sim = self.sim()?;
+        if delay == 0.0 {
+            // the acquisition reads the present: no history to keep
+            return sim.advance_to(t).map_err(|e| e.to_string());
+        }
+        let from = sim.time();
+        let mut line = match self.sensed.take() {
+            Some(line) => line,
+            None => DelayLine::new(delay, from, Measurement::of(&self.sim()?.outputs())),
+        };
         let result = (|| {
             if let Some(t_read) = line.read_instant_within(from, t) {
                 let sim = self.sim()?;

@@ -55,7 +55,8 @@ const LAWS: [(LawKind, &str, &str); 5] = [
     ),
 ];
 
-fn law_code(k: LawKind) -> i32 {
+/// The enumeration value of a law in the FMUs (1-based, the order of `LAWS`).
+pub fn law_code(k: LawKind) -> i32 {
     LAWS.iter()
         .position(|(l, _, _)| *l == k)
         .map_or(1, |i| i as i32 + 1)

@@ -173,6 +173,7 @@ impl Servovalve for ReducedServovalve {
         PortFlows {
             a: self.land_flow(s, p.supply - p.a) - self.land_flow(-s, p.a - p.tank),
             b: self.land_flow(-s, p.supply - p.b) - self.land_flow(s, p.b - p.tank),
+            // (II.2) the two lands that meter from P
             supply: self.land_flow(s, p.supply - p.a) + self.land_flow(-s, p.supply - p.b),
         }
     }

@@ -4,6 +4,7 @@ mod bench;
 mod cosim;
 mod gap;
 mod package;
+mod parallel;
 mod plot;
 mod simulate;
 mod sweep;

@@ -118,30 +118,10 @@ pub fn main(req: &Request) -> Result<(), String> {
 }
 
 /// Runs in parallel on all cores, with a progress bar.
-fn run_all(runs: &[Scenario]) -> Result<Vec<Run>, String> {
-    let bar = indicatif::ProgressBar::new(runs.len() as u64).with_style(
-        indicatif::ProgressStyle::with_template("{bar:30} {pos}/{len} runs {elapsed} {msg}")
-            .map_err(|e| e.to_string())?,
-    );
-    let cores = std::thread::available_parallelism().map_or(1, |n| n.get());
-    let next = std::sync::atomic::AtomicUsize::new(0);
-    let mut out: Vec<Option<Result<Run, String>>> = vec![None; runs.len()];
-    let slots = std::sync::Mutex::new(&mut out);
-    std::thread::scope(|scope| {
-        for _ in 0..cores.min(runs.len()) {
-            scope.spawn(|| loop {
-                let k = next.fetch_add(1, std::sync::atomic::Ordering::Relaxed);
-                let Some(s) = runs.get(k) else { break };
-                let r = s.run();
-                bar.set_message(s.label.clone());
-                bar.inc(1);
-                slots.lock().expect("no panic while holding the lock")[k] = Some(r);
-            });
-        }
-    });
-    bar.finish_and_clear();
-    out.into_iter()
-        .map(|r| r.expect("every run was taken"))
+pub fn run_all(runs: &[Scenario]) -> Result<Vec<Run>, String> {
+    let bar = crate::parallel::bar(runs.len(), "runs", true);
+    crate::parallel::map(runs, &bar, |s| s.label.clone(), Scenario::run)
+        .into_iter()
         .collect()
 }
 
@@ -261,10 +241,9 @@ fn start_values(s: &Scenario) -> Value {
         v.insert(format!("effect.{}", e.name), json!(p.has(e.effect)));
     }
     let c = &s.controller;
-    let law_code = LawKind::ALL.iter().position(|&l| l == c.law).unwrap_or(0) + 1;
     for (name, value) in [
         ("mode", json!(p.mode.number())),
-        ("law", json!(law_code)),
+        ("law", json!(hbfmu::models::controller::law_code(c.law))),
         ("Kp", json!(c.kp)),
         ("c1", json!(c.c[0])),
         ("c2", json!(c.c[1])),

@@ -238,12 +238,7 @@ pub fn main(
             }
         }
     }
-    let bar = indicatif::ProgressBar::new(jobs.len() as u64);
-    if let Ok(style) = indicatif::ProgressStyle::with_template(
-        "blind study {bar:30} {pos}/{len} {elapsed}/{duration} {msg}",
-    ) {
-        bar.set_style(style);
-    }
+    let bar = crate::parallel::bar(jobs.len(), "blind study", true);
     let mut cases = Vec::new();
     for (set, kind, seed) in jobs {
         let label = format!(

@@ -8,6 +8,7 @@ use std::path::Path;
 
 use hbmodel::control::scenario::{Signal, KP_SECTION_4_4, SINE_AMPLITUDE};
 use hbmodel::control::trajectory::Trajectory;
+use hbmodel::control::COMMAND_LIMIT;
 use hbmodel::effects::Effect;
 use hbmodel::sensors::{Channel, Sensor, SensorParams};
 use hbmodel::{Mode, Params};
@@ -171,7 +172,7 @@ pub fn measure(truth: &Params, kind: Kind, seed: u64) -> Result<(Experiment, Mea
         // resonance of a model without friction and leakage (30 bar RMS in P1 on the sweep,
         // measured), a random disturbance no deterministic model can reproduce.
         let u = match kp {
-            Some(kp) => (kp * (r - s.y)).clamp(-10.0, 10.0),
+            Some(kp) => (kp * (r - s.y)).clamp(-COMMAND_LIMIT, COMMAND_LIMIT),
             None => r,
         };
         // recorded through the 16-bit converter, applied exactly: quantisation steps fed

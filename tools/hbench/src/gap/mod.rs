@@ -101,35 +101,14 @@ fn fit_all(
         .filter(|c| !model.has(c.effect))
         .filter(|c| c.effect.spec().requires.iter().all(|r| model.has(*r)))
         .collect();
-    let bar = if progress {
-        indicatif::ProgressBar::new(candidates.len() as u64)
-    } else {
-        indicatif::ProgressBar::hidden()
-    };
-    if let Ok(style) = indicatif::ProgressStyle::with_template(
-        "fitting {bar:30} {pos}/{len} candidates {elapsed} {msg}",
-    ) {
-        bar.set_style(style);
-    }
-    let next = std::sync::atomic::AtomicUsize::new(0);
-    let fits = std::sync::Mutex::new(Vec::new());
-    let cores = std::thread::available_parallelism().map_or(1, |n| n.get());
-    std::thread::scope(|s| {
-        for _ in 0..cores.min(candidates.len()) {
-            s.spawn(|| loop {
-                let k = next.fetch_add(1, std::sync::atomic::Ordering::Relaxed);
-                let Some(c) = candidates.get(k) else { break };
-                let f = fit(target, model, c, carried);
-                bar.set_message(c.effect.name());
-                bar.inc(1);
-                fits.lock().expect("no panic holding the lock").push(f);
-            });
-        }
-    });
-    bar.finish_and_clear();
-    let mut fits = fits.into_inner().expect("threads joined");
-    fits.sort_by_key(|f| f.effect as usize);
-    fits
+    let bar = crate::parallel::bar(candidates.len(), "fitting", progress);
+    // in registry order, as the candidates
+    crate::parallel::map(
+        &candidates,
+        &bar,
+        |c| c.effect.name().to_string(),
+        |c| fit(target, model, c, carried),
+    )
 }
 
 /// Run the workflow on loaded data.
