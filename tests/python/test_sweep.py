@@ -286,3 +286,26 @@ def test_dask_cluster_matches_the_single_process_run_and_survives_a_killed_worke
                 assert r["metrics"][name] == value, (r["id"], name)
     assert (out / "results.csv").read_text().count("\n") == POINTS + 1
     assert (out / "sensitivity.png").is_file() and (out / "metric_transient_max.png").is_file()
+
+
+def test_sweep_metrics_agree_with_hbench_simulate(tmp_path):
+    """The sweep computes its metrics in Python from the FMU's outputs; `hbench simulate`
+    computes the same ones in Rust (model/src/control/scenario.rs). Given hbench's own
+    trace and windows, both must give the same figures, or a study and the docs' tables
+    would disagree about the same run."""
+    import numpy as np
+    from sweep import evaluate
+
+    subprocess.run([HBENCH, "simulate", "--scenario", "moves", "--law", "proportional",
+                    "--out", str(tmp_path)], check=True, capture_output=True)
+    run = json.loads((tmp_path / "moves.json").read_text())["runs"][0]
+    trace = np.genfromtxt(tmp_path / run["csv"], delimiter=",", names=True)
+    series = {name: trace[name] for name in trace.dtype.names}
+    wanted = ["transient_max", "transient_rms", "transient_std", "static_mean", "static_std",
+              "peak_pressure", "energy"]
+    ours, notes = evaluate.metrics(series, run["windows"], wanted, 210e5)
+    assert notes == []
+    theirs = dict(run["metrics"], energy=run["metrics"]["supply_energy"])
+    for m in wanted:
+        # the CSV carries 17 significant digits; the window edges fall on samples
+        assert ours[m] == pytest.approx(theirs[m], rel=1e-6, abs=1e-12), m

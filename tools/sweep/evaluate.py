@@ -38,6 +38,9 @@ METRICS: dict[str, str] = {
 #: Outputs the metrics read; Q_supply is optional (older FMUs lack it).
 OUTPUTS = ("y", "P1", "P2")
 SUPPLY_FLOW = "Q_supply"
+# s, tolerance on window edges, as WINDOW_EDGE in model/src/control/scenario.rs: sample
+# times meant to sit on an edge carry round-off of either sign
+WINDOW_EDGE = 1e-9
 SUPPLY_PRESSURE = "P_supply"
 
 
@@ -132,7 +135,8 @@ def _window_mask(times: np.ndarray, windows: list[dict], kind: str) -> np.ndarra
     mask = np.zeros(times.shape, dtype=bool)
     for w in windows:
         if w["kind"] == kind:
-            mask |= (times >= w["start"]) & (times <= w["end"])
+            # half-open with the same edge tolerance as scenario::Window::contains in Rust
+            mask |= (times >= w["start"] - WINDOW_EDGE) & (times < w["end"] - WINDOW_EDGE)
     return mask
 
 
@@ -164,7 +168,8 @@ def metrics(series: dict[str, np.ndarray], windows: list[dict], wanted: list[str
     if "energy" in wanted:
         if SUPPLY_FLOW in series:
             q = series[SUPPLY_FLOW]
-            out["energy"] = float(p_supply * np.sum(0.5 * (q[1:] + q[:-1]) * np.diff(t)))
+            # each sample's flow over the interval that ends at it, as scenario::Metrics
+            out["energy"] = float(p_supply * np.sum(q[1:] * np.diff(t)))
         else:
             out["energy"] = math.nan
             notes.append(f"the FMU has no output {SUPPLY_FLOW}: energy skipped")

@@ -301,11 +301,7 @@ impl Scenario {
         let inside = |kind: WindowKind| -> Vec<f64> {
             trace
                 .iter()
-                .filter(|s| {
-                    self.windows
-                        .iter()
-                        .any(|w| w.kind == kind && s.t >= w.start && s.t < w.end)
-                })
+                .filter(|s| self.windows.iter().any(|w| w.contains(kind, s.t)))
                 .map(|s| s.out.y - s.reference)
                 .collect()
         };
@@ -351,6 +347,20 @@ impl Scenario {
 /// Time after which a pressure-tracking law's pressure has left its initial transient
 /// (the chambers start at the rest pressures, not at P_ref): the first move starts at 1 s.
 const PRESSURE_SETTLE: f64 = 0.5;
+
+/// s, tolerance on a window's edges: sample times are sums of periods whose round-off
+/// (1e-16 s) may put a sample meant to sit on an edge on either side; 1 ns is far below
+/// any sampling period and far above that round-off. tools/sweep/evaluate.py uses the
+/// same, so a study and `hbench simulate` count the same samples.
+pub const WINDOW_EDGE: f64 = 1e-9;
+
+impl Window {
+    /// Whether a sample at `t` belongs to this window of kind `kind`: half-open
+    /// [start, end), so that a window's end is the next one's start.
+    pub fn contains(&self, kind: WindowKind, t: f64) -> bool {
+        self.kind == kind && t >= self.start - WINDOW_EDGE && t < self.end - WINDOW_EDGE
+    }
+}
 
 fn window(kind: WindowKind, start: f64, end: f64) -> Window {
     Window { kind, start, end }

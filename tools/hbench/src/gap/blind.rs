@@ -12,7 +12,11 @@ use rand::SeedableRng;
 use rand_pcg::Pcg64;
 use serde::Serialize;
 
-use super::hide::{measure, truth, Kind};
+use hbmodel::sensors::SensorParams;
+
+use super::data::COMPARED;
+use super::hide::{measure, measure_with, truth, Kind};
+use super::MIN_IMPROVEMENT;
 
 #[derive(Debug, Clone, Serialize, serde::Deserialize)]
 pub struct Case {
@@ -27,6 +31,15 @@ pub struct Case {
     pub fitted: Option<f64>,
     pub initial_gap: f64,
     pub remaining_gap: f64,
+    /// Mean square, over the compared samples, of what the hidden effects change in the
+    /// noise-free signals, in units of the true sensor noise (absent in studies run before
+    /// it was recorded).
+    #[serde(default)]
+    pub visibility: Option<f64>,
+    /// Whether an ideal fit (the truth itself) would pass the workflow's acceptance rules:
+    /// its chi-square drop pays k ln N and it lowers the gap by MIN_IMPROVEMENT.
+    #[serde(default)]
+    pub identifiable: Option<bool>,
 }
 
 impl Case {
@@ -72,6 +85,45 @@ pub fn known_model(hidden: &[Effect]) -> Params {
     p
 }
 
+/// What the hidden effects change in the noise-free data, as the mean square of the
+/// differences over the compared samples in units of the true sensor noise, and whether
+/// the truth itself, fitted by an ideal optimiser with `k` parameters, would pass the
+/// workflow's acceptance rules on such data (the expected chi-square of the noise is one
+/// per sample). Uses what the workflow never sees: the truth and the true noise.
+fn visibility(known: &Params, truth: &Params, kind: Kind, k: usize) -> Result<(f64, bool), String> {
+    let exact = SensorParams {
+        position_noise: 0.0,
+        pressure_noise: 0.0,
+        ..SensorParams::default()
+    };
+    let (_, a) = measure_with(known, kind, &exact)?;
+    let (_, b) = measure_with(truth, kind, &exact)?;
+    let noise = SensorParams::default();
+    let mut sum = 0.0;
+    let mut count = 0usize;
+    for s in COMPARED {
+        let sigma = if s == "y" {
+            noise.position_noise
+        } else {
+            noise.pressure_noise
+        };
+        let (Some(x), Some(y)) = (a.get(s), b.get(s)) else {
+            continue;
+        };
+        sum += x
+            .iter()
+            .zip(y)
+            .map(|(x, y)| ((x - y) / sigma).powi(2))
+            .sum::<f64>();
+        count += x.len();
+    }
+    let n = count as f64;
+    let v = sum / n;
+    let pays = sum > k as f64 * n.ln();
+    let improves = 1.0 < (1.0 - MIN_IMPROVEMENT) * (1.0 + v).sqrt();
+    Ok((v, pays && improves))
+}
+
 /// One case: hide, run the workflow, compare with the truth.
 pub fn case(hidden: &[Effect], kind: Kind, seed: u64) -> Result<Case, String> {
     let mut rng = Pcg64::seed_from_u64(seed);
@@ -79,6 +131,7 @@ pub fn case(hidden: &[Effect], kind: Kind, seed: u64) -> Result<Case, String> {
     let (p, drawn) = truth(&base, hidden, &mut rng);
     let (experiment, measured) = measure(&p, kind, seed)?;
     let outcome = super::run(&base, &experiment, &measured, false)?;
+    let (visible, identifiable) = visibility(&base, &p, kind, drawn.len())?;
     let (path, value) = match drawn.first() {
         Some((p, v)) => (*p, Some(*v)),
         None => ("", None),
@@ -109,6 +162,8 @@ pub fn case(hidden: &[Effect], kind: Kind, seed: u64) -> Result<Case, String> {
         fitted,
         initial_gap: outcome.initial_gap,
         remaining_gap: outcome.remaining_gap,
+        visibility: Some(visible),
+        identifiable: Some(identifiable),
     })
 }
 
@@ -127,7 +182,7 @@ fn rate(cases: &[&Case], f: impl Fn(&Case) -> bool) -> String {
 /// Markdown summary: per hidden effect and overall.
 pub fn table(cases: &[Case]) -> String {
     let mut md = String::from(
-        "| hidden | cases | first named correctly | all hidden found | fitted within 20 % | median gap closed |\n|---|---|---|---|---|---|\n",
+        "| hidden | cases | first named correctly | all hidden found | fitted within 20 % | median gap closed | identifiable | first named, identifiable | all found, identifiable |\n|---|---|---|---|---|---|---|---|---|\n",
     );
     let label = |c: &Case| {
         if c.hidden.is_empty() {
@@ -144,9 +199,19 @@ pub fn table(cases: &[Case]) -> String {
         let mut shrink: Vec<f64> = sel.iter().map(|c| c.shrink()).collect();
         shrink.sort_by(f64::total_cmp);
         let median = shrink.get(shrink.len() / 2).copied().unwrap_or(f64::NAN);
+        // the cases with an effect hidden whose data show it (recorded ones only)
+        let shown: Vec<&Case> = sel
+            .iter()
+            .copied()
+            .filter(|c| !c.hidden.is_empty() && c.identifiable == Some(true))
+            .collect();
+        let recorded = sel
+            .iter()
+            .filter(|c| !c.hidden.is_empty() && c.identifiable.is_some())
+            .count();
         let _ = writeln!(
             md,
-            "| {name} | {} | {} | {} | {} | {:.0} % |",
+            "| {name} | {} | {} | {} | {} | {:.0} % | {} | {} | {} |",
             sel.len(),
             rate(&sel, Case::first_correct),
             rate(&sel, Case::all_found),
@@ -157,7 +222,14 @@ pub fn table(cases: &[Case]) -> String {
                     .collect::<Vec<_>>(),
                 |c| c.magnitude_error().is_some_and(|e| e <= 0.2)
             ),
-            100.0 * median
+            100.0 * median,
+            if recorded == 0 {
+                "-".to_string()
+            } else {
+                format!("{}/{recorded}", shown.len())
+            },
+            rate(&shown, Case::first_correct),
+            rate(&shown, Case::all_found),
         );
     };
     for g in &groups {

@@ -148,16 +148,25 @@ pub fn draw(c: &Candidate, rng: &mut Pcg64) -> Vec<(&'static str, f64)> {
 
 /// Sampled, noisy, quantised data of `truth` under experiment `kind`.
 pub fn measure(truth: &Params, kind: Kind, seed: u64) -> Result<(Experiment, Measured), String> {
-    let (experiment, duration, f) = signal(kind);
-    let n = (duration / PERIOD).round() as usize;
     let sp = SensorParams {
         seed,
         ..SensorParams::default()
     };
-    let mut y_s = Sensor::new(&sp, Channel::Position, 0);
-    let mut p1_s = Sensor::new(&sp, Channel::Pressure, 1);
-    let mut p2_s = Sensor::new(&sp, Channel::Pressure, 2);
-    let mut u_s = Sensor::new(&sp, Channel::Exact, 3);
+    measure_with(truth, kind, &sp)
+}
+
+/// The same through an acquisition of the given noise and resolution.
+pub fn measure_with(
+    truth: &Params,
+    kind: Kind,
+    sp: &SensorParams,
+) -> Result<(Experiment, Measured), String> {
+    let (experiment, duration, f) = signal(kind);
+    let n = (duration / PERIOD).round() as usize;
+    let mut y_s = Sensor::new(sp, Channel::Position, 0);
+    let mut p1_s = Sensor::new(sp, Channel::Pressure, 1);
+    let mut p2_s = Sensor::new(sp, Channel::Pressure, 2);
+    let mut u_s = Sensor::new(sp, Channel::Exact, 3);
     let mut rows: Vec<[f64; 6]> = Vec::with_capacity(n);
     let kp = match &experiment.drive {
         Drive::Proportional { kp, .. } => Some(*kp),
