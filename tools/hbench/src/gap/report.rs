@@ -7,7 +7,7 @@ use std::path::Path;
 use serde_json::json;
 
 use super::analysis::describe;
-use super::data::{Experiment, Measured};
+use super::data::{Drive, Experiment, Measured};
 use super::effects::candidate;
 use super::Outcome;
 use crate::plot::{stacked, time_traces, Line, Panel};
@@ -166,9 +166,13 @@ pub fn write(out: &Path, o: &Outcome, e: &Experiment, m: &Measured) -> Result<()
     let mut md = String::from("# Model-gap report\n\n");
     let _ = writeln!(
         md,
-        "Experiment: mode {}, {:?} drive, {} samples at {:.1} ms. Starting model effects: {}.\n",
+        "Experiment: mode {}, {}, {} samples at {:.1} ms. Starting model effects: {}.\n",
         e.mode,
-        e.drive,
+        match &e.drive {
+            Drive::Proportional { kp, reference } =>
+                format!("proportional control u1 = -u2 = {kp} V/m x ({reference} - y)"),
+            Drive::OpenLoop => "open loop, the recorded u1 and u2 drive the model".into(),
+        },
         m.time.len(),
         m.period() * 1e3,
         list(o.start.effects.active().map(|x| x.name()))
@@ -176,7 +180,7 @@ pub fn write(out: &Path, o: &Outcome, e: &Experiment, m: &Measured) -> Result<()
     let _ = writeln!(
         md,
         "The gap is the RMS of measured minus simulated y, P1, P2, each in units of its noise \
-         (estimated from the data): 1 is the noise floor.\n\n**Result:** gap {:.2} -> {:.2}. {}.\n",
+         (estimated from the data): 1 is the noise floor.\n\n**Result:** gap {:.2} -> {:.2}: {}.\n",
         o.initial_gap, o.remaining_gap, o.verdict
     );
     md.push_str("## Where the model disagreed with the data\n\n");
