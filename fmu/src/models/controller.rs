@@ -12,6 +12,7 @@ use hbmodel::control::config::{ControllerParams, LawKind};
 use hbmodel::control::dao2::Dao2;
 use hbmodel::control::law::Reference;
 use hbmodel::control::sampled::{SampledController, StateSource};
+use hbmodel::control::scenario::law_name;
 use hbmodel::control::Measurement;
 use hbmodel::{Outputs, Params};
 use modeldesc::{DefaultExperiment, EnumItem, EnumerationType};
@@ -30,27 +31,27 @@ const LAW_TYPE: &str = "HydroBench.ControlLaw";
 const LAWS: [(LawKind, &str, &str); 5] = [
     (
         LawKind::Proportional,
-        "proportional",
+        law_name(LawKind::Proportional),
         "u1 = -u2 = Kp (y_ref - y), (4.22)",
     ),
     (
         LawKind::YLambda,
-        "y_lambda",
+        law_name(LawKind::YLambda),
         "Backstepping Y-lambda, (5.16)-(5.35)",
     ),
     (
         LawKind::PY,
-        "p_y",
+        law_name(LawKind::PY),
         "Backstepping P-Y, (5.36)-(5.58); P_ref is P1d",
     ),
     (
         LawKind::ModelFree,
-        "model_free",
+        law_name(LawKind::ModelFree),
         "Model-free i-PI, (6.6)-(6.9)",
     ),
     (
         LawKind::RestrictedModel,
-        "restricted_model",
+        law_name(LawKind::RestrictedModel),
         "Control with restricted model, (6.10)-(6.17)",
     ),
 ];

@@ -552,8 +552,8 @@ pub fn build(name: &str, base: &Params, o: &Overrides) -> Result<Vec<Scenario>, 
     Ok(runs)
 }
 
-/// The law's name as the FMUs' enumeration spells it.
-pub fn law_name(law: LawKind) -> &'static str {
+/// The law's name in scenarios, on the command line and in the FMUs' enumeration.
+pub const fn law_name(law: LawKind) -> &'static str {
     match law {
         LawKind::Proportional => "proportional",
         LawKind::YLambda => "y_lambda",

@@ -19,6 +19,23 @@ pub struct Panel {
 
 const WIDTH: u32 = 1000;
 const PANEL_HEIGHT: u32 = 260;
+const LOG_PANEL_HEIGHT: u32 = 340;
+
+fn failure(path: &Path, e: &dyn std::fmt::Display) -> String {
+    format!("plot {}: {e}", path.display())
+}
+
+/// A white SVG page of the common width with `title` on top; what is left to draw on.
+fn canvas<'a>(
+    path: &'a Path,
+    title: &str,
+    height: u32,
+) -> Result<DrawingArea<SVGBackend<'a>, plotters::coord::Shift>, String> {
+    let root = SVGBackend::new(path, (WIDTH, height)).into_drawing_area();
+    root.fill(&WHITE).map_err(|e| failure(path, &e))?;
+    root.titled(title, ("sans-serif", 18))
+        .map_err(|e| failure(path, &e))
+}
 
 fn bounds(panels: &[Panel]) -> (f64, f64) {
     let ts = panels
@@ -47,13 +64,8 @@ pub fn time_traces(path: &Path, title: &str, panels: &[Panel]) -> Result<(), Str
 
 /// Write the panels stacked into an SVG file, against a shared x quantity.
 pub fn stacked(path: &Path, title: &str, x_desc: &str, panels: &[Panel]) -> Result<(), String> {
-    let height = PANEL_HEIGHT * panels.len() as u32 + 40;
-    let root = SVGBackend::new(path, (WIDTH, height)).into_drawing_area();
-    let fail = |e: &dyn std::fmt::Display| format!("plot {}: {e}", path.display());
-    root.fill(&WHITE).map_err(|e| fail(&e))?;
-    let root = root
-        .titled(title, ("sans-serif", 18))
-        .map_err(|e| fail(&e))?;
+    let fail = |e: &dyn std::fmt::Display| failure(path, e);
+    let root = canvas(path, title, PANEL_HEIGHT * panels.len() as u32 + 40)?;
     let (t0, t1) = bounds(panels);
     for (area, panel) in root.split_evenly((panels.len(), 1)).iter().zip(panels) {
         let (lo, hi) = range(&panel.lines);
@@ -132,13 +144,8 @@ pub fn log_log(
 ) -> Result<(), String> {
     let columns = columns.max(1);
     let rows = panels.len().div_ceil(columns);
-    let height = 340 * rows as u32 + 40;
-    let root = SVGBackend::new(path, (WIDTH, height)).into_drawing_area();
-    let fail = |e: &dyn std::fmt::Display| format!("plot {}: {e}", path.display());
-    root.fill(&WHITE).map_err(|e| fail(&e))?;
-    let root = root
-        .titled(title, ("sans-serif", 18))
-        .map_err(|e| fail(&e))?;
+    let fail = |e: &dyn std::fmt::Display| failure(path, e);
+    let root = canvas(path, title, LOG_PANEL_HEIGHT * rows as u32 + 40)?;
     // the x values are few and chosen (the steps of a study): a margin, not decades
     let (x0, x1) = panels
         .iter()
