@@ -90,7 +90,7 @@ pub fn noise(x: &[f64], quantum: f64) -> f64 {
     }
     psd.iter_mut().for_each(|a| *a /= quiet.len() as f64);
     psd.sort_by(f64::total_cmp);
-    let q = psd[(NOISE_QUANTILE * bins as f64) as usize];
+    let q = psd[rank];
     // chi2(nu)/nu with nu = 2 per segment less the Hann overlap's correlation (about
     // 10 %), approximated by a gamma law of shape nu/2
     let nu = 1.8 * quiet.len() as f64;
