@@ -14,6 +14,8 @@
 
 use std::cell::RefCell;
 
+pub mod fixed_step;
+
 use diffsol::{
     NalgebraLU, NalgebraMat, OdeBuilder, OdeSolverMethod, OdeSolverState, OdeSolverStopReason,
     Vector,
@@ -34,7 +36,12 @@ pub enum SolverError {
 #[derive(Debug, Clone, Copy, Default, PartialEq, Eq)]
 pub struct SolverStats {
     pub steps: usize,
+    /// Calls of the right-hand side, those the finite-difference Jacobian makes included.
     pub rhs_evaluations: usize,
+    /// Full Jacobians formed (each one costs n + 1 right-hand sides by differences).
+    pub jacobian_evaluations: usize,
+    /// LU factorisations of the Newton matrix.
+    pub factorisations: usize,
 }
 
 /// Settings of one integration.
@@ -42,6 +49,9 @@ pub struct SolverStats {
 pub struct Tolerances {
     pub rtol: f64,
     pub atol: Vec<f64>,
+    /// Above 0, the fixed-step real-time method with steps of this size (s) instead of
+    /// the adaptive solver ([`fixed_step`]); 0 keeps the adaptive solver.
+    pub fixed_step: f64,
 }
 
 /// Relative perturbation of the finite-difference Jacobian: sqrt of machine epsilon.
@@ -91,8 +101,12 @@ where
     if t1 - t0 <= 4.0 * f64::EPSILON * t0.abs().max(1e-3) {
         return Ok(());
     }
+    if tol.fixed_step > 0.0 {
+        return fixed_step::integrate(&f, x, t0, t1, tol.fixed_step, tol, scale, stats);
+    }
     let n = x.len();
     let calls = RefCell::new(0usize);
+    let jacobians = RefCell::new(0usize);
     // f at the point the Jacobian is taken, kept across its n columns: diffsol asks for
     // them one by one at the same (t, y), and f(y) is the same for all of them
     let base = RefCell::new((f64::NAN, vec![f64::NAN; n], vec![0.0; n]));
@@ -121,6 +135,7 @@ where
             y_b.copy_from_slice(y);
             f(t, y, f_b);
             *calls.borrow_mut() += 1;
+            *jacobians.borrow_mut() += 1;
         }
         let mut shifted = shifted.borrow_mut();
         let (yh, f_h) = &mut *shifted;
@@ -183,6 +198,8 @@ where
     let y = solver.state().y.clone_as_vec();
     x.copy_from_slice(&y);
     stats.rhs_evaluations += *calls.borrow();
+    stats.jacobian_evaluations += *jacobians.borrow();
+    stats.factorisations += solver.get_statistics().number_of_linear_solver_setups;
     if x.iter().any(|v| !v.is_finite()) {
         return Err(SolverError::NonFinite { t: t1 });
     }
@@ -204,6 +221,7 @@ mod tests {
         let tol = Tolerances {
             rtol: 1e-8,
             atol: vec![1e-10, 1e-10],
+            fixed_step: 0.0,
         };
         let mut stats = SolverStats::default();
         integrate(f, &mut x, 0.0, 1.0, &tol, &[1.0, 1.0], &mut stats).unwrap();
@@ -220,6 +238,7 @@ mod tests {
         let tol = Tolerances {
             rtol: 1e-6,
             atol: vec![1e-6],
+            fixed_step: 0.0,
         };
         let mut x = [0.0];
         let r = integrate(
@@ -251,6 +270,7 @@ mod tests {
         let tol = Tolerances {
             rtol: 1e-6,
             atol: vec![1e-6],
+            fixed_step: 0.0,
         };
         let mut x = [0.0];
         let r = integrate(
