@@ -18,7 +18,7 @@ pub mod fixed_step;
 
 use diffsol::{
     NalgebraLU, NalgebraMat, OdeBuilder, OdeSolverMethod, OdeSolverState, OdeSolverStopReason,
-    Vector,
+    Tableau, Vector,
 };
 
 /// Why an integration failed.
@@ -164,18 +164,77 @@ where
         t: t0,
         message: e.to_string(),
     };
-    let mut state = problem.bdf_state::<NalgebraLU<f64>>().map_err(fail)?;
-    if let Some(h) = *step {
-        if h.is_finite() && h > 0.0 {
-            *state.as_mut().h = h;
+    let seed = |h: &mut f64| {
+        if let Some(s) = *step {
+            if s.is_finite() && s > 0.0 {
+                *h = s;
+            }
         }
+    };
+    let (y, free_step, setups) = match method() {
+        Method::Bdf => {
+            let mut state = problem.bdf_state::<NalgebraLU<f64>>().map_err(fail)?;
+            seed(state.as_mut().h);
+            let solver = problem.bdf_solver::<NalgebraLU<f64>>(state).map_err(fail)?;
+            drive(solver, t0, t1, stats)?
+        }
+        Method::TrBdf2 | Method::Esdirk34 => {
+            let tableau = if method() == Method::TrBdf2 {
+                Tableau::<f64>::tr_bdf2()
+            } else {
+                Tableau::<f64>::esdirk34()
+            };
+            let mut state = problem.rk_state(&tableau).map_err(fail)?;
+            seed(state.as_mut().h);
+            let solver = problem
+                .sdirk_solver::<NalgebraLU<f64>, _>(state, tableau)
+                .map_err(fail)?;
+            drive(solver, t0, t1, stats)?
+        }
+    };
+    *step = free_step.or(*step);
+    x.copy_from_slice(&y);
+    stats.rhs_evaluations += *calls.borrow();
+    stats.jacobian_evaluations += *jacobians.borrow();
+    stats.factorisations += setups;
+    if x.iter().any(|v| !v.is_finite()) {
+        return Err(SolverError::NonFinite { t: t1 });
     }
-    let mut solver = problem.bdf_solver::<NalgebraLU<f64>>(state).map_err(fail)?;
+    Ok(())
+}
+
+/// The diffsol method the adaptive path uses.
+#[derive(Debug, Clone, Copy, PartialEq, Eq)]
+enum Method {
+    Bdf,
+    TrBdf2,
+    Esdirk34,
+}
+
+fn method() -> Method {
+    match std::env::var("HB_METHOD").as_deref() {
+        Ok("trbdf2") => Method::TrBdf2,
+        Ok("esdirk34") => Method::Esdirk34,
+        _ => Method::Bdf,
+    }
+}
+
+/// Step `solver` to `t1`; the state there, the last step it chose freely (the one that
+/// lands on t1 is cut to fit) and its Jacobian/LU setups.
+fn drive<'a, Eqn, S>(
+    mut solver: S,
+    t0: f64,
+    t1: f64,
+    stats: &mut SolverStats,
+) -> Result<(Vec<f64>, Option<f64>, usize), SolverError>
+where
+    Eqn: diffsol::OdeEquations<T = f64, V = diffsol::NalgebraVec<f64>> + 'a,
+    S: OdeSolverMethod<'a, Eqn>,
+{
     solver.set_stop_time(t1).map_err(|e| SolverError::Failed {
         t: t0,
         message: e.to_string(),
     })?;
-    // the step the solver chose freely last: the one that lands on t1 is cut to fit
     let mut free_step = None;
     loop {
         let t_now = solver.state().t;
@@ -194,16 +253,9 @@ where
         }
     }
     stats.steps += 1;
-    *step = free_step.or(*step).or(Some(solver.state().h.abs()));
-    let y = solver.state().y.clone_as_vec();
-    x.copy_from_slice(&y);
-    stats.rhs_evaluations += *calls.borrow();
-    stats.jacobian_evaluations += *jacobians.borrow();
-    stats.factorisations += solver.get_statistics().number_of_linear_solver_setups;
-    if x.iter().any(|v| !v.is_finite()) {
-        return Err(SolverError::NonFinite { t: t1 });
-    }
-    Ok(())
+    let free_step = free_step.or(Some(solver.state().h.abs()));
+    let setups = solver.get_statistics().number_of_linear_solver_setups;
+    Ok((solver.state().y.clone_as_vec(), free_step, setups))
 }
 
 #[cfg(test)]
