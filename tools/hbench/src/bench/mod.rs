@@ -13,7 +13,7 @@ mod peer;
 use hbmodel::control::trajectory::Trajectory;
 use hbmodel::control::{run_loop, Controller, Proportional, Timing, SAMPLE_PERIOD};
 use hbmodel::params::ValveModel;
-use hbmodel::solver::SolverStats;
+use hbmodel::solver::{set_adaptive_method, Method, SolverStats};
 use hbmodel::{Effect, Mode, Params, Simulation};
 use serde_json::{json, Value};
 
@@ -132,7 +132,7 @@ fn per_second(count: usize, seconds: f64) -> f64 {
     count as f64 / seconds
 }
 
-fn valve_row(valves: Valves, seconds: f64) -> Result<Value, String> {
+fn valve_row(valves: Valves, method: Method, seconds: f64) -> Result<Value, String> {
     let mut p = valves.params();
     p.solver.rtol = RTOL;
     let fast = run(&p, seconds)?;
@@ -142,9 +142,10 @@ fn valve_row(valves: Valves, seconds: f64) -> Result<Value, String> {
     let s = fast.stats;
     let speed = seconds / fast.cpu;
     println!(
-        "{:>13} valves: {:2} states, {speed:7.2} simulated s per CPU s; per simulated s: \
-         {:7.0} steps, {:8.0} RHS, {:6.0} Jacobians, {:6.0} LU; max |y - y(rtol 1e-9)| = {:.4} um",
+        "{:>13} valves, {:8}: {:2} states, {speed:6.2} simulated s per CPU s; per simulated s: \
+         {:6.0} steps, {:7.0} RHS, {:5.0} Jacobians, {:5.0} LU; max |y - y(rtol 1e-9)| = {:.4} um",
         valves.name(),
+        format!("{method:?}"),
         fast.states,
         per_second(s.steps, seconds),
         per_second(s.rhs_evaluations, seconds),
@@ -154,6 +155,7 @@ fn valve_row(valves: Valves, seconds: f64) -> Result<Value, String> {
     );
     Ok(json!({
         "valves": valves.name(),
+        "method": format!("{method:?}"),
         "states": fast.states,
         "simulated_seconds": seconds,
         "cpu_seconds": fast.cpu,
@@ -269,11 +271,16 @@ pub fn main(req: &Request) -> Result<(), String> {
              {seconds} s, rtol {RTOL:e} vs {RTOL_REFERENCE:e}; CPU time of this thread"
         );
         for v in [Valves::Static, Valves::SecondOrder, Valves::TwoStage] {
-            valves.push(valve_row(v, seconds)?);
+            // the method before issue 13 and the one after, back to back
+            for m in [Method::Bdf, Method::Esdirk34] {
+                set_adaptive_method(m);
+                valves.push(valve_row(v, m, seconds)?);
+            }
         }
-        let ours = valves[0]["sim_s_per_cpu_s"].as_f64().unwrap_or(f64::NAN);
+        let ours = valves[1]["sim_s_per_cpu_s"].as_f64().unwrap_or(f64::NAN);
         peer = peer_row(seconds, ours);
     }
+    set_adaptive_method(Method::Esdirk34);
     println!(
         "real-time mode, {} s of the moves, against the adaptive run at rtol {RTOL:e}:",
         req.realtime_seconds
