@@ -42,6 +42,9 @@ ATMOSPHERE = 1.013e5  # Pa
 # Smoothing velocity of the dry-friction sign (m/s): tanh(v / V_DRY) is within 1 % of
 # sign(v) above 2.6 V_DRY = 0.26 mm/s, far below the 0.22 m/s of a move.
 V_DRY = 1e-4
+# Reference velocity of a bent viscous law (m/s): the peak speed of the thesis moves,
+# 35/16 * 20 mm / 0.2 s = 0.22 m/s, where the bent law and the linear one agree.
+V_VISCOUS = 0.22
 # Pressure drop of the manifold passages at loss_scale 1: the abacus-based method gives
 # 0.39 bar at 30 L/min for passage C1-N2 (Tables 3.1-3.2); a chamber circuit crosses about
 # three such passages, so about 1.2 bar at 30 L/min, quadratic in the flow (3.5)-(3.7).
@@ -67,6 +70,9 @@ DEFAULTS = {
     # section 4.4: 1e-4 L/min/bar across the piston
     "actuator.internal_leakage": 1e-4 * 1e-3 / 60.0 / 1e5,
     "actuator.viscous_friction": 400.0,  # section 4.4
+    # shape of the viscous law: F = b v (1 + c |v| / v_r) / (1 + c), c = 0 the linear law
+    # of section 4.4; a variant bends it (oil film thinning or thickening with speed)
+    "friction.viscous_bend": 0.0,
     "friction.coulomb": 0.0,
     "friction.static_peak": 0.0,
     "friction.stribeck_velocity": 0.01,
@@ -224,7 +230,8 @@ class Bench:
         """Viscous friction (section 4.4) plus a dry part in the Tustin form the Sidhom
         model builds on (4.5)-(4.13): Coulomb level with an exponential Stribeck peak."""
         p = self.p
-        f = p["actuator.viscous_friction"] * v
+        c = p["friction.viscous_bend"]
+        f = p["actuator.viscous_friction"] * v * (1 + c * abs(v) / V_VISCOUS) / (1 + c)
         fc, fs = p["friction.coulomb"], p["friction.static_peak"]
         if fc > 0 or fs > 0:
             peak = max(fs - fc, 0.0) * math.exp(-abs(v) / p["friction.stribeck_velocity"])

@@ -156,6 +156,14 @@ enum Command {
         /// Replace files already in DIR
         #[arg(long)]
         force: bool,
+        /// The bench: rust (the model) or peer (tools/peer/bench_peer.py, an independent
+        /// Python/scipy simulator written from the thesis)
+        #[arg(long, default_value = "rust", value_parser = gap::variants::Simulator::parse)]
+        simulator: gap::variants::Simulator,
+        /// Add a random model-form error (parameters a few percent off, a sensor lag, ...;
+        /// written to answer.json); the known model is then section 4.4's
+        #[arg(long)]
+        form_error: bool,
     },
     /// Blind study of the model-gap workflow: for every hidden effect (or pair), experiment
     /// and seed, `hide` data and let `gap` find what is missing without the answer; writes
@@ -269,15 +277,19 @@ fn main() -> ExitCode {
             base,
             out,
             force,
-        } => gap::hide::main(
-            &effects,
-            experiment,
+            simulator,
+            form_error,
+        } => gap::hide::main(&gap::hide::Options {
+            effects: &effects,
+            kind: experiment,
             seed,
-            &at,
-            base.as_deref(),
-            &out,
+            at: &at,
+            base: base.as_deref(),
+            out: &out,
             force,
-        ),
+            simulator,
+            form_error,
+        }),
         Command::Blind {
             effects,
             experiments,
