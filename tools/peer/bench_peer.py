@@ -39,9 +39,12 @@ MOVE_FIRST, MOVE_DURATION, MOVE_HALF_PERIOD = 1.0, 0.2, 1.0
 # Steps of Fig. 4.8 as `hbench simulate --scenario steps` (scenario.rs): -10 mm to +10 mm
 # at 0.05 s and back at 0.35 s.
 STEP_TIMES = (0.05, 0.35)
-# Method: BDF and Radau measured at equal rtol on the 10 s moves (see README in this
-# directory); the faster is the default.
-DEFAULT_METHOD = "BDF"
+# Method: Radau. Each 1 ms period is a fresh solve_ivp call (the command steps), so a
+# multistep BDF restarts at order 1 every period, while Radau is order 5 from its first
+# step. On the 10 s moves at rtol 1e-6 (tools/peer/README.md, measured): Radau 15.1 s CPU,
+# 0.002 um from the rtol 1e-9 run; BDF 11.8 s, 0.11 um; at equal accuracy Radau is the
+# faster (rtol 1e-4: 9.3 s, 0.023 um; BDF needs rtol 1e-9, 44 s, for 0.006 um).
+DEFAULT_METHOD = "Radau"
 
 
 def move_reference(t):
@@ -123,6 +126,7 @@ def initial_state(bench, exp):
     def residual(z):
         x = state(z)
         _, u1, u2 = exp.commands(0, x[0])
+        bench.settle_spools(x, u1, u2)
         d = bench.rhs(0.0, x, u1, u2)
         r = [d[2] / 1e9, d[3] / 1e9]
         return [d[1] / 10.0] + r if closed else r
@@ -131,7 +135,10 @@ def initial_state(bench, exp):
     z, _, ok, msg = fsolve(residual, guess, full_output=True, xtol=1e-12)
     if ok != 1:
         raise RuntimeError(f"no rest state: {msg}")
-    return state(z)
+    x = state(z)
+    _, u1, u2 = exp.commands(0, x[0])
+    bench.settle_spools(x, u1, u2)
+    return x
 
 
 def run(bench, exp, rtol, method=DEFAULT_METHOD):
@@ -173,8 +180,8 @@ def run(bench, exp, rtol, method=DEFAULT_METHOD):
             raise RuntimeError(f"non-finite state at t = {t1:.4f} s")
         h = sol.t[-1] - sol.t[-2]
         stats["steps"] += len(sol.t) - 1
-        stats["rhs_evaluations"] += sol.nfev
-        stats["jacobian_evaluations"] += sol.njev
+        stats["rhs_evaluations"] += int(sol.nfev)
+        stats["jacobian_evaluations"] += int(sol.njev)
         if delay > 0:
             history.append((t0, t1, sol.sol))
             history = history[-keep:]

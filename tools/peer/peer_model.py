@@ -296,6 +296,14 @@ class Bench:
             x[self.i_press], x[self.i_press + 1] = p1, p2
         return x
 
+    def settle_spools(self, x, u1, u2):
+        """Second-order spools at rest at their commanded position (in place)."""
+        for valve, u in ((0, u1), (1, u2)):
+            i = self.i_spool[valve]
+            if i is not None:
+                x[i] = (u + self.p[f"sv{valve + 1}.null_bias"]) / RATED_INPUT
+                x[i + 1] = 0.0
+
     def natural_frequencies(self, y):
         """Hydraulic natural frequency (Hz) at position y from (3.8)-(3.11):
         omega^2 = beta A^2 (1/V1 + 1/V2) / M, volumes and mass with the manifold."""

@@ -182,6 +182,13 @@ enum Command {
         /// Hide every pair of the effects at once instead of one at a time
         #[arg(long)]
         pairs: bool,
+        /// Benches that make the data: rust, peer (repeat the option; default rust)
+        #[arg(long = "simulator", value_parser = gap::variants::Simulator::parse)]
+        simulators: Vec<gap::variants::Simulator>,
+        /// Draw a model-form error per case (see `hide --form-error`); the known model is
+        /// then section 4.4's
+        #[arg(long)]
+        form_error: bool,
         /// Only tabulate the cases of these blind.json files again (no simulation)
         #[arg(long)]
         summarise: Vec<PathBuf>,
@@ -295,6 +302,8 @@ fn main() -> ExitCode {
             experiments,
             seeds,
             pairs,
+            simulators,
+            form_error,
             summarise,
             out,
         } => {
@@ -304,7 +313,15 @@ fn main() -> ExitCode {
                 experiments
             };
             if summarise.is_empty() {
-                gap::blind::main(&effects, &kinds, seeds, pairs, &out)
+                gap::blind::main(&gap::blind::Options {
+                    effects: &effects,
+                    kinds: &kinds,
+                    seeds,
+                    pairs,
+                    simulators: &simulators,
+                    form_error,
+                    out: &out,
+                })
             } else {
                 gap::blind::summarise(&summarise, &out)
             }

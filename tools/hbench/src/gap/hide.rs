@@ -162,6 +162,7 @@ pub struct Truth {
 
 impl Truth {
     /// The Rust model with these parameters, nothing else.
+    #[cfg(test)]
     pub fn rust(params: Params) -> Self {
         Truth {
             params,
@@ -189,22 +190,14 @@ impl Truth {
     }
 }
 
-/// Sampled, noisy, quantised data of `truth` under experiment `kind`.
+/// Sampled, noisy, quantised data of the Rust model `truth` under experiment `kind`.
+#[cfg(test)]
 pub fn measure(truth: &Params, kind: Kind, seed: u64) -> Result<(Experiment, Measured), String> {
     let sp = SensorParams {
         seed,
         ..SensorParams::default()
     };
-    measure_with(truth, kind, &sp)
-}
-
-/// The same through an acquisition of the given noise and resolution.
-pub fn measure_with(
-    truth: &Params,
-    kind: Kind,
-    sp: &SensorParams,
-) -> Result<(Experiment, Measured), String> {
-    measure_truth(&Truth::rust(truth.clone()), kind, sp)
+    measure_truth(&Truth::rust(truth.clone()), kind, &sp)
 }
 
 /// Weight of the new sample in a first-order lag of time constant `tau` sampled every
@@ -421,7 +414,7 @@ pub fn main(o: &Options) -> Result<(), String> {
         drawn.push((spec.path, *v));
     }
     let form = if o.form_error {
-        FormError::draw(o.simulator, &mut rng)
+        FormError::for_seed(o.simulator, seed)
     } else {
         FormError::none()
     };

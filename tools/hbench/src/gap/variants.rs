@@ -13,7 +13,7 @@ use std::collections::BTreeMap;
 
 use hbmodel::effects::{param, Effect};
 use hbmodel::Params;
-use rand::Rng;
+use rand::{Rng, SeedableRng};
 use rand_pcg::Pcg64;
 use serde_json::{json, Map, Value};
 
@@ -88,6 +88,10 @@ pub const PAYLOAD_RANGE: [f64; 2] = [5.0, 50.0];
 /// peak of the Tustin form the peer uses; (4.13)'s shape in the Rust model differs).
 const PEER_STRIBECK_PEAK: f64 = 1.3;
 
+/// Mixed into a case's seed for its form-error stream (an odd 64-bit constant, the
+/// golden ratio's fraction, so that seeds 1, 2, ... give unrelated streams).
+const FORM_STREAM: u64 = 0x9E37_79B9_7F4A_7C15;
+
 /// One case's model-form error.
 #[derive(Debug, Clone, PartialEq, Default)]
 pub struct FormError {
@@ -112,6 +116,13 @@ impl FormError {
             edge_scale: 1.0,
             ..Default::default()
         }
+    }
+
+    /// The form error of case `seed` on `sim`, drawn from a stream of its own: the same
+    /// seed gives the same bench whatever is hidden in it, so that cases of one seed
+    /// differ only by their hidden effects.
+    pub fn for_seed(sim: Simulator, seed: u64) -> Self {
+        Self::draw(sim, &mut Pcg64::seed_from_u64(seed ^ FORM_STREAM))
     }
 
     /// A random form error for `sim`.
@@ -220,4 +231,137 @@ pub fn peer_variant(
 /// The answer file's record of the form error and the simulator.
 pub fn describe(sim: Simulator, form: &FormError) -> Value {
     json!({"simulator": sim.name(), "form_error": form.to_json()})
+}
+
+#[cfg(test)]
+mod tests {
+    //! The CI sample of blind data with model-form error: every hideable effect on both
+    //! benches, one short record each (steps, 0.65 s). What the workflow makes of such
+    //! data is the blind study's (`hbench blind --simulator rust --simulator peer
+    //! --form-error`, docs/gap.md); here: each hidden effect reaches the bench and shows
+    //! in its record, the form error alone keeps the two benches a model error apart, and
+    //! `hide` writes what it drew.
+
+    use super::*;
+    use crate::gap::blind::Setup;
+    use crate::gap::hide::{hideable, measure_truth, Kind, Options};
+    use hbmodel::sensors::SensorParams;
+
+    fn exact() -> SensorParams {
+        SensorParams {
+            position_noise: 0.0,
+            pressure_noise: 0.0,
+            ..SensorParams::default()
+        }
+    }
+
+    /// Mean square difference of y, P1, P2 in units of the sensors' noise.
+    fn change(a: &crate::gap::data::Measured, b: &crate::gap::data::Measured) -> f64 {
+        let sp = SensorParams::default();
+        let mut sum = 0.0;
+        let mut n = 0;
+        for (c, sigma) in [
+            ("y", sp.position_noise),
+            ("P1", sp.pressure_noise),
+            ("P2", sp.pressure_noise),
+        ] {
+            let (x, y) = (a.get(c).unwrap(), b.get(c).unwrap());
+            sum += x
+                .iter()
+                .zip(y)
+                .map(|(x, y)| ((x - y) / sigma).powi(2))
+                .sum::<f64>();
+            n += x.len();
+        }
+        sum / n as f64
+    }
+
+    #[test]
+    fn every_hidden_effect_shows_on_both_benches() {
+        let mut seen = Vec::new();
+        for sim in Simulator::ALL {
+            // with seed 1 every case draws the same form error: one bench without effect
+            let without = Setup::new(sim, true, &[], 1).without;
+            let (_, base) = measure_truth(&without, Kind::Steps, &exact()).unwrap();
+            for e in Effect::ALL.into_iter().filter(|e| hideable(*e)) {
+                let s = Setup::new(sim, true, &[e], 1);
+                assert_eq!(s.without.form, without.form);
+                let (_, m) = measure_truth(&s.bench, Kind::Steps, &exact()).unwrap();
+                seen.push((sim.name(), e.name(), change(&base, &m)));
+            }
+        }
+        eprintln!("{seen:?}");
+        for (sim, e, v) in seen {
+            assert!(v > 0.1, "{e} on {sim}: mean square change {v} noise^2");
+        }
+    }
+
+    #[test]
+    fn the_two_benches_differ_by_a_model_error_only() {
+        let (_, rust) = measure_truth(
+            &Setup::new(Simulator::Rust, true, &[], 2).bench,
+            Kind::Steps,
+            &exact(),
+        )
+        .unwrap();
+        let (_, peer) = measure_truth(
+            &Setup::new(Simulator::Peer, true, &[], 2).bench,
+            Kind::Steps,
+            &exact(),
+        )
+        .unwrap();
+        let rms = |a: &[f64], b: &[f64]| {
+            (a.iter().zip(b).map(|(x, y)| (x - y).powi(2)).sum::<f64>() / a.len() as f64).sqrt()
+        };
+        let dy = rms(rust.get("y").unwrap(), peer.get("y").unwrap());
+        let dp = rms(rust.get("P1").unwrap(), peer.get("P1").unwrap());
+        eprintln!("rms dy {dy} dP1 {dp}");
+        assert!(dy < 0.05 * 20e-3, "y differs by {dy} m RMS");
+        assert!(dp < 10e5, "P1 differs by {dp} Pa RMS");
+        // and they do differ: the peer is another bench
+        assert!(dy > 1e-6 && dp > 0.1e5, "{dy} {dp}");
+    }
+
+    #[test]
+    fn hide_writes_the_form_error_and_a_known_model_without_the_truths_structure() {
+        let out = std::env::temp_dir().join(format!("hbench-hide-test-{}", std::process::id()));
+        let _ = std::fs::remove_dir_all(&out);
+        crate::gap::hide::main(&Options {
+            effects: &["manifold_inertia".to_string()],
+            kind: Kind::Steps,
+            seed: 3,
+            at: &[],
+            base: None,
+            out: &out,
+            force: false,
+            simulator: Simulator::Peer,
+            form_error: true,
+        })
+        .unwrap();
+        let answer: Value =
+            serde_json::from_str(&std::fs::read_to_string(out.join("answer.json")).unwrap())
+                .unwrap();
+        assert_eq!(answer["bench"]["simulator"], "peer");
+        let form = &answer["bench"]["form_error"];
+        let bulk = form["fluid.bulk_modulus (factor)"].as_f64().unwrap();
+        assert!((0.9..=1.1).contains(&bulk) && bulk != 1.0, "{form}");
+        assert_eq!(answer["hidden"][0], "manifold_inertia");
+        let known = Params::load(&out.join("known_model.toml")).unwrap();
+        assert!(known.has(Effect::InternalLeakage) && known.has(Effect::ViscousFriction));
+        assert!(!known.has(Effect::ManifoldInertia) && !known.has(Effect::ManifoldVolume));
+        // never overwritten without --force
+        let again = crate::gap::hide::main(&Options {
+            effects: &["none".to_string()],
+            kind: Kind::Steps,
+            seed: 3,
+            at: &[],
+            base: None,
+            out: &out,
+            force: false,
+            simulator: Simulator::Rust,
+            form_error: false,
+        });
+        assert!(again.unwrap_err().contains("exists"));
+        std::fs::remove_dir_all(&out).unwrap();
+    }
 }
