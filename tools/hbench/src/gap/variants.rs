@@ -326,18 +326,20 @@ mod tests {
     fn hide_writes_the_form_error_and_a_known_model_without_the_truths_structure() {
         let out = std::env::temp_dir().join(format!("hbench-hide-test-{}", std::process::id()));
         let _ = std::fs::remove_dir_all(&out);
-        crate::gap::hide::main(&Options {
-            effects: &["manifold_inertia".to_string()],
-            kind: Kind::Steps,
-            seed: 3,
-            at: &[],
-            base: None,
-            out: &out,
-            force: false,
-            simulator: Simulator::Peer,
-            form_error: true,
-        })
-        .unwrap();
+        let hide = |effect: &str, simulator, form_error| {
+            crate::gap::hide::main(&Options {
+                effects: &[effect.to_string()],
+                kind: Kind::Steps,
+                seed: 3,
+                at: &[],
+                base: None,
+                out: &out,
+                force: false,
+                simulator,
+                form_error,
+            })
+        };
+        hide("manifold_inertia", Simulator::Peer, true).unwrap();
         let answer: Value =
             serde_json::from_str(&std::fs::read_to_string(out.join("answer.json")).unwrap())
                 .unwrap();
@@ -350,18 +352,33 @@ mod tests {
         assert!(known.has(Effect::InternalLeakage) && known.has(Effect::ViscousFriction));
         assert!(!known.has(Effect::ManifoldInertia) && !known.has(Effect::ManifoldVolume));
         // never overwritten without --force
-        let again = crate::gap::hide::main(&Options {
-            effects: &["none".to_string()],
-            kind: Kind::Steps,
-            seed: 3,
-            at: &[],
-            base: None,
-            out: &out,
-            force: false,
-            simulator: Simulator::Rust,
-            form_error: false,
-        });
+        let again = hide("none", Simulator::Rust, false);
         assert!(again.unwrap_err().contains("exists"));
         std::fs::remove_dir_all(&out).unwrap();
+    }
+
+    /// Issue 14's targets on the CI sample, one sweep case per hideable effect and per
+    /// bench plus nothing hidden: on identifiable cases the hidden effect is named first,
+    /// with nothing hidden nothing is added. Ignored: each case runs the whole workflow
+    /// (about 1 min of CPU per case before issue 14's scoring, measured); the lead enables
+    /// it once the scoring holds under model-form error:
+    /// `cargo test --release -p hbench -- --ignored form_error_sample`.
+    #[test]
+    #[ignore]
+    fn form_error_sample_names_the_hidden_effect() {
+        use crate::gap::blind::{case_with, table};
+        let mut cases = Vec::new();
+        for sim in Simulator::ALL {
+            for e in Effect::ALL.into_iter().filter(|e| hideable(*e)) {
+                cases.push(case_with(sim, true, &[e], Kind::Sweep, 1).unwrap());
+            }
+            cases.push(case_with(sim, true, &[], Kind::Sweep, 1).unwrap());
+        }
+        eprintln!("{}", table(&cases));
+        for c in &cases {
+            if c.hidden.is_empty() || c.identifiable == Some(true) {
+                assert!(c.first_correct(), "{c:?}");
+            }
+        }
     }
 }
