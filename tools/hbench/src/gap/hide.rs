@@ -234,12 +234,15 @@ fn raw(truth: &Truth, kind: Kind) -> Result<(Experiment, Vec<[f64; 5]>), String>
     run(&truth.params, &experiment, n, PERIOD, &mut |k, s| {
         // the sensors' lags: the loop acts on the lagged LVDT, as on a bench whose LVDT
         // conditioner filters
+        let lag = |prev: f64, now: f64, w: f64| {
+            if w < 1.0 {
+                prev + w * (now - prev)
+            } else {
+                now
+            }
+        };
         let (y, p1, p2) = match rows.last() {
-            Some(&[_, y, p1, p2, _]) => (
-                y + wy * (s.y - y),
-                p1 + wp * (s.p1 - p1),
-                p2 + wp * (s.p2 - p2),
-            ),
+            Some(&[_, y, p1, p2, _]) => (lag(y, s.y, wy), lag(p1, s.p1, wp), lag(p2, s.p2, wp)),
             None => (s.y, s.p1, s.p2),
         };
         let r = signal[k];
