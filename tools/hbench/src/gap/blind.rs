@@ -1,7 +1,9 @@
 //! `hbench blind`: the blind study of the model-gap workflow. For every hidden effect,
 //! experiment type and seed, data are made by `hide` and handed to the workflow, which
 //! never sees the answer; the table says how often the hidden effect is the first one
-//! named, how close its fitted magnitude comes, and how much of the gap closes.
+//! named, how close its fitted magnitude comes, and how much of the gap closes, over all
+//! cases and over the identifiable ones; per bench (the model or the peer simulator, with
+//! or without model-form error) when the study holds several.
 
 use std::fmt::Write as _;
 use std::path::Path;

@@ -2,6 +2,8 @@
 //! the effect switched on at a random, physically plausible magnitude is driven through
 //! one of four experiments and sampled as the bench's DS1104 does (1 kHz, sensor noise,
 //! 16-bit quantisation); the truth goes into a separate file the workflow never reads.
+//! The bench may carry a model-form error (variants.rs) and may be the independent peer
+//! simulator (peer.rs) instead of the model.
 
 use std::f64::consts::PI;
 use std::path::Path;
