@@ -452,7 +452,7 @@ pub fn main(o: &Options) -> Result<(), String> {
     // the model to give `gap --model`: what is known, not the truth
     write("known_model.toml", known.to_toml())?;
     let answer = json!({
-        "bench": describe(o.simulator, &form),
+        "bench": describe(o.simulator, &form, truth.peer.as_ref()),
         "hidden": hidden.iter().map(|e| e.name()).collect::<Vec<_>>(),
         "parameters": drawn.iter().map(|(k, v)| (k.to_string(), json!(v))).collect::<serde_json::Map<_, _>>(),
         "experiment": kind.name(),

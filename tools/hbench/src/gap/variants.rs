@@ -228,9 +228,15 @@ pub fn peer_variant(
     v
 }
 
-/// The answer file's record of the form error and the simulator.
-pub fn describe(sim: Simulator, form: &FormError) -> Value {
-    json!({"simulator": sim.name(), "form_error": form.to_json()})
+/// The answer file's record of the simulator, the form error and, on the peer, the
+/// parameters it ran with (where a hidden effect's magnitude lands in the peer's own
+/// terms, e.g. the internal leakage across the piston).
+pub fn describe(sim: Simulator, form: &FormError, peer: Option<&Map<String, Value>>) -> Value {
+    let mut d = json!({"simulator": sim.name(), "form_error": form.to_json()});
+    if let Some(p) = peer {
+        d["peer_parameters"] = Value::Object(p.clone());
+    }
+    d
 }
 
 #[cfg(test)]
@@ -344,6 +350,12 @@ mod tests {
             serde_json::from_str(&std::fs::read_to_string(out.join("answer.json")).unwrap())
                 .unwrap();
         assert_eq!(answer["bench"]["simulator"], "peer");
+        let peer = &answer["bench"]["peer_parameters"];
+        let drawn = answer["parameters"]["manifold.inertia_scale"]
+            .as_f64()
+            .unwrap();
+        assert_eq!(peer["manifold.inertia_scale"].as_f64(), Some(drawn));
+        assert_eq!(peer["manifold.volume_scale"].as_f64(), Some(0.0));
         let form = &answer["bench"]["form_error"];
         let bulk = form["fluid.bulk_modulus (factor)"].as_f64().unwrap();
         assert!((0.9..=1.1).contains(&bulk) && bulk != 1.0, "{form}");
