@@ -156,6 +156,14 @@ enum Command {
         /// Replace files already in DIR
         #[arg(long)]
         force: bool,
+        /// The bench: rust (the model) or peer (tools/peer/bench_peer.py, an independent
+        /// Python/scipy simulator written from the thesis)
+        #[arg(long, default_value = "rust", value_parser = gap::variants::Simulator::parse)]
+        simulator: gap::variants::Simulator,
+        /// Add a random model-form error (parameters a few percent off, a sensor lag, ...;
+        /// written to answer.json); the known model is then section 4.4's
+        #[arg(long)]
+        form_error: bool,
     },
     /// Blind study of the model-gap workflow: for every hidden effect (or pair), experiment
     /// and seed, `hide` data and let `gap` find what is missing without the answer; writes
@@ -174,6 +182,13 @@ enum Command {
         /// Hide every pair of the effects at once instead of one at a time
         #[arg(long)]
         pairs: bool,
+        /// Benches that make the data: rust, peer (repeat the option; default rust)
+        #[arg(long = "simulator", value_parser = gap::variants::Simulator::parse)]
+        simulators: Vec<gap::variants::Simulator>,
+        /// Draw a model-form error per case (see `hide --form-error`); the known model is
+        /// then section 4.4's
+        #[arg(long)]
+        form_error: bool,
         /// Only tabulate the cases of these blind.json files again (no simulation)
         #[arg(long)]
         summarise: Vec<PathBuf>,
@@ -280,20 +295,26 @@ fn main() -> ExitCode {
             base,
             out,
             force,
-        } => gap::hide::main(
-            &effects,
-            experiment,
+            simulator,
+            form_error,
+        } => gap::hide::main(&gap::hide::Options {
+            effects: &effects,
+            kind: experiment,
             seed,
-            &at,
-            base.as_deref(),
-            &out,
+            at: &at,
+            base: base.as_deref(),
+            out: &out,
             force,
-        ),
+            simulator,
+            form_error,
+        }),
         Command::Blind {
             effects,
             experiments,
             seeds,
             pairs,
+            simulators,
+            form_error,
             summarise,
             out,
         } => {
@@ -303,7 +324,15 @@ fn main() -> ExitCode {
                 experiments
             };
             if summarise.is_empty() {
-                gap::blind::main(&effects, &kinds, seeds, pairs, &out)
+                gap::blind::main(&gap::blind::Options {
+                    effects: &effects,
+                    kinds: &kinds,
+                    seeds,
+                    pairs,
+                    simulators: &simulators,
+                    form_error,
+                    out: &out,
+                })
             } else {
                 gap::blind::summarise(&summarise, &out)
             }
