@@ -14,7 +14,7 @@ if ! dpkg -s libclang-dev >/dev/null 2>&1; then
     DEBIAN_FRONTEND=noninteractive $SUDO apt-get install -y -qq libclang-dev >/dev/null
 fi
 
-if [ ! -x .venv/bin/python ] || ! .venv/bin/python -c "import fmpy, pytest, lxml, dask.distributed, matplotlib, tqdm" 2>/dev/null; then
+if [ ! -x .venv/bin/python ] || ! .venv/bin/python -c "import fmpy, pytest, lxml, dask.distributed, matplotlib, tqdm, scipy" 2>/dev/null; then
     echo "setup: creating .venv with fmpy and pytest" >&2
     python3 -m venv .venv
     .venv/bin/pip install -q --disable-pip-version-check -r tools/requirements.txt

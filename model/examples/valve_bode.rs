@@ -117,7 +117,11 @@ fn valve_speed(
     let mut atol = vec![0.0; N_STATES];
     v.absolute_tolerances(&mut atol);
     let scale: Vec<f64> = atol.iter().map(|a| a * 1e4).collect();
-    let tol = Tolerances { rtol: 1e-6, atol };
+    let tol = Tolerances {
+        rtol: 1e-6,
+        atol,
+        fixed_step: 0.0,
+    };
     let mut stats = SolverStats::default();
     let start = Instant::now();
     let n = (t_end / SAMPLE_PERIOD).round() as usize;

@@ -344,6 +344,7 @@ impl Simulation {
             tolerances: Tolerances {
                 rtol: params.solver.rtol,
                 atol,
+                fixed_step: params.solver.fixed_step,
             },
             scales,
             state: SimState {

@@ -347,6 +347,9 @@ params! {
         "Delay between physical signals and their samples";
     "solver.rtol" => solver.rtol, "1", [1e-12, 1e-2], None,
         "Relative tolerance of the stiff integrator";
+    // last: the FMUs append it after their other variables (stable value references)
+    "solver.fixed_step" => solver.fixed_step, "s", [0.0, 1e-2], None,
+        "Step of the fixed-step real-time mode (L-stable SDIRK2, bounded Newton); 0 keeps the adaptive solver";
 }
 
 #[cfg(test)]

@@ -166,11 +166,17 @@ impl Default for ValveParams {
 #[serde(deny_unknown_fields, default)]
 pub struct SolverParams {
     pub rtol: f64,
+    /// Step (s) of the fixed-step real-time mode; 0 keeps the adaptive solver
+    /// (docs/realtime.md gives the steps at which it is accurate).
+    pub fixed_step: f64,
 }
 
 impl Default for SolverParams {
     fn default() -> Self {
-        SolverParams { rtol: 1e-6 }
+        SolverParams {
+            rtol: 1e-6,
+            fixed_step: 0.0,
+        }
     }
 }
 

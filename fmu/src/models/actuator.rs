@@ -295,6 +295,7 @@ impl Model for ActuatorFmu {
             (get::<9>, set::<9>),
         ];
         v.extend(port_inputs(&PASSAGE_INPUTS, access));
+        v.push(super::fixed_step_parameter());
         v
     }
 
@@ -357,6 +358,7 @@ impl Model for ActuatorFmu {
         let tol = Tolerances {
             rtol: p.solver.rtol,
             atol,
+            fixed_step: p.solver.fixed_step,
         };
         integrate(
             |_t, x, dx| {

@@ -75,6 +75,12 @@ impl Model for ClosedLoopFmu {
             .filter(|x| !PLANT_INTERNAL.contains(&x.decl.name.as_str()))
             .map(|x| project(x, |m: &Self| &m.plant, |m: &mut Self| &mut m.plant))
             .collect();
+        // the plant's fixed step goes last, after the controller's variables, so that
+        // every value reference from before the real-time mode keeps its number
+        let fixed_step = v
+            .iter()
+            .position(|x| x.decl.name == super::FIXED_STEP)
+            .map(|i| v.remove(i));
         v.extend(
             ControllerFmu::variables()
                 .into_iter()
@@ -97,6 +103,7 @@ impl Model for ClosedLoopFmu {
                 var.depends_on = None;
             }
         }
+        v.extend(fixed_step);
         v
     }
 

@@ -225,6 +225,7 @@ impl Model for ManifoldFmu {
                     real_output(name, d, unit, get).depends_on(&["P1", "P2"])
                 }),
         );
+        v.push(super::fixed_step_parameter());
         v
     }
 
@@ -365,6 +366,7 @@ impl Model for ManifoldFmu {
             let tol = Tolerances {
                 rtol: self.s.params.solver.rtol,
                 atol,
+                fixed_step: self.s.params.solver.fixed_step,
             };
             integrate(
                 |_t, x, dx| {

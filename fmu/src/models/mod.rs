@@ -196,7 +196,7 @@ pub fn registry_parameters<M: HasParams + 'static>(
 ) -> Vec<VarDef<M>> {
     PARAMS
         .iter()
-        .filter(|spec| keep(spec.path))
+        .filter(|spec| spec.path != FIXED_STEP && keep(spec.path))
         .map(|spec| {
             real_parameter(
                 &rename(fmu_name(spec.path)),
@@ -210,6 +210,28 @@ pub fn registry_parameters<M: HasParams + 'static>(
             )
         })
         .collect()
+}
+
+/// The real-time mode's step, which every FMU with an integrator declares last so that
+/// the value references it had before the mode existed keep their numbers.
+pub const FIXED_STEP: &str = "solver.fixed_step";
+
+/// The `solver.fixed_step` parameter (see [`FIXED_STEP`]).
+pub fn fixed_step_parameter<M: HasParams + 'static>() -> VarDef<M> {
+    let spec = PARAMS
+        .iter()
+        .find(|spec| spec.path == FIXED_STEP)
+        .expect("solver.fixed_step is in the registry");
+    real_parameter(
+        FIXED_STEP,
+        spec.description,
+        spec.unit,
+        spec.default_value(),
+        spec.min,
+        spec.max,
+        move |m: &M| spec.get(m.params()),
+        move |m: &mut M, v| spec.set(m.params_mut(), v),
+    )
 }
 
 /// `effect.<name>` Boolean switches for the given effects.

@@ -197,6 +197,7 @@ impl Model for ServovalveFmu {
                     .depends_on(&["u", "P_P", "P_T", "P_A", "P_B"]),
             );
         }
+        v.push(super::fixed_step_parameter());
         v
     }
 
@@ -256,6 +257,7 @@ impl Model for ServovalveFmu {
             let tol = Tolerances {
                 rtol: self.params.solver.rtol,
                 atol,
+                fixed_step: self.params.solver.fixed_step,
             };
             let mut x = self.x.clone();
             let ports = self.ports();

@@ -824,7 +824,11 @@ pub fn sine_response(
         atol[k] = 1e-6 * amplitude.max(0.01) / freq;
         scale[k] = 1e-2 / freq;
     }
-    let tol = Tolerances { rtol, atol };
+    let tol = Tolerances {
+        rtol,
+        atol,
+        fixed_step: 0.0,
+    };
     let f = |t: f64, x: &[f64], dx: &mut [f64]| {
         let (s, c) = (w * t).sin_cos();
         let u = v.null_bias + amplitude * v.rated_command * s;

@@ -156,6 +156,14 @@ enum Command {
         /// Replace files already in DIR
         #[arg(long)]
         force: bool,
+        /// The bench: rust (the model) or peer (tools/peer/bench_peer.py, an independent
+        /// Python/scipy simulator written from the thesis)
+        #[arg(long, default_value = "rust", value_parser = gap::variants::Simulator::parse)]
+        simulator: gap::variants::Simulator,
+        /// Add a random model-form error (parameters a few percent off, a sensor lag, ...;
+        /// written to answer.json); the known model is then section 4.4's
+        #[arg(long)]
+        form_error: bool,
     },
     /// Blind study of the model-gap workflow: for every hidden effect (or pair), experiment
     /// and seed, `hide` data and let `gap` find what is missing without the answer; writes
@@ -174,22 +182,40 @@ enum Command {
         /// Hide every pair of the effects at once instead of one at a time
         #[arg(long)]
         pairs: bool,
+        /// Benches that make the data: rust, peer (repeat the option; default rust)
+        #[arg(long = "simulator", value_parser = gap::variants::Simulator::parse)]
+        simulators: Vec<gap::variants::Simulator>,
+        /// Draw a model-form error per case (see `hide --form-error`); the known model is
+        /// then section 4.4's
+        #[arg(long)]
+        form_error: bool,
         /// Only tabulate the cases of these blind.json files again (no simulation)
         #[arg(long)]
         summarise: Vec<PathBuf>,
         #[arg(long, default_value = "out/blind")]
         out: PathBuf,
     },
-    /// Measure the speed of the bench model: simulated seconds per CPU second for the
-    /// bench in mode 3 under proportional control following +-10 mm moves, static and
-    /// second-order servovalve, rtol 1e-6, and the deviation from an rtol 1e-9 run.
+    /// Speed of the bench in CPU time: mode 3, thesis parameters, the 7th-order +-10 mm
+    /// moves under 1 kHz P control (Kp = 1169 V/m), with static, second-order and
+    /// two-stage valves at rtol 1e-6 against rtol 1e-9; the Python/scipy peer on the same
+    /// scenario side by side; and the CPU cost per 1 ms step of the fixed-step real-time
+    /// mode (median, 99.9th percentile, maximum).
     Bench {
-        /// Simulated time per run (s)
-        #[arg(long, default_value_t = 1.0)]
+        /// Simulated time per throughput run (s); 0 runs the real-time figures only
+        #[arg(long, default_value_t = 3.0)]
         seconds: f64,
-        /// Print JSON instead of the table
+        /// Simulated time of the real-time cost runs (s)
+        #[arg(long, default_value_t = 10.0)]
+        realtime_seconds: f64,
+        /// Fixed step of the real-time run with static valves (s)
+        #[arg(long, default_value_t = 5e-4)]
+        static_step: f64,
+        /// Fixed step of the real-time run with two-stage valves (s)
+        #[arg(long, default_value_t = 1e-4)]
+        two_stage_step: f64,
+        /// Also write the figures as JSON to this file
         #[arg(long)]
-        json: bool,
+        json: Option<PathBuf>,
     },
     /// Co-simulate the bench from its component FMUs (two servovalves, manifold,
     /// actuator) as bench.ssp wires them, under the thesis's 1 kHz proportional control
@@ -269,20 +295,26 @@ fn main() -> ExitCode {
             base,
             out,
             force,
-        } => gap::hide::main(
-            &effects,
-            experiment,
+            simulator,
+            form_error,
+        } => gap::hide::main(&gap::hide::Options {
+            effects: &effects,
+            kind: experiment,
             seed,
-            &at,
-            base.as_deref(),
-            &out,
+            at: &at,
+            base: base.as_deref(),
+            out: &out,
             force,
-        ),
+            simulator,
+            form_error,
+        }),
         Command::Blind {
             effects,
             experiments,
             seeds,
             pairs,
+            simulators,
+            form_error,
             summarise,
             out,
         } => {
@@ -292,12 +324,32 @@ fn main() -> ExitCode {
                 experiments
             };
             if summarise.is_empty() {
-                gap::blind::main(&effects, &kinds, seeds, pairs, &out)
+                gap::blind::main(&gap::blind::Options {
+                    effects: &effects,
+                    kinds: &kinds,
+                    seeds,
+                    pairs,
+                    simulators: &simulators,
+                    form_error,
+                    out: &out,
+                })
             } else {
                 gap::blind::summarise(&summarise, &out)
             }
         }
-        Command::Bench { seconds, json } => bench::main(seconds, json),
+        Command::Bench {
+            seconds,
+            realtime_seconds,
+            static_step,
+            two_stage_step,
+            json,
+        } => bench::main(&bench::Request {
+            seconds,
+            realtime_seconds,
+            static_step,
+            two_stage_step,
+            json: json.as_deref(),
+        }),
         Command::Cosim(args) => cosim::main(args),
         Command::Sweep { args } => sweep::main(&args),
         Command::Tables { out } => tables::main(&out),

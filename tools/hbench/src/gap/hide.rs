@@ -2,6 +2,8 @@
 //! the effect switched on at a random, physically plausible magnitude is driven through
 //! one of four experiments and sampled as the bench's DS1104 does (1 kHz, sensor noise,
 //! 16-bit quantisation); the truth goes into a separate file the workflow never reads.
+//! The bench may carry a model-form error (variants.rs) and may be the independent peer
+//! simulator (peer.rs) instead of the model.
 
 use std::f64::consts::PI;
 use std::path::Path;
@@ -16,9 +18,13 @@ use rand::{Rng, SeedableRng};
 use rand_pcg::Pcg64;
 use serde_json::json;
 
+use std::collections::BTreeMap;
+
 use super::data::{Drive, Experiment, Measured};
 use super::drive::run;
 use super::effects::{candidate, Candidate};
+use super::peer;
+use super::variants::{describe, peer_variant, section_4_4, FormError, Simulator, PAYLOAD_RANGE};
 
 /// The experiment types of issue 6.
 #[derive(Debug, Clone, Copy, PartialEq, Eq)]
@@ -146,63 +152,189 @@ pub fn draw(c: &Candidate, rng: &mut Pcg64) -> Vec<(&'static str, f64)> {
         .collect()
 }
 
-/// Sampled, noisy, quantised data of `truth` under experiment `kind`.
+/// The bench a record is taken on: the Rust model with the truth's parameters, or the
+/// peer simulator with its variant, and the sensors' lags of the form error.
+#[derive(Debug, Clone)]
+pub struct Truth {
+    pub params: Params,
+    pub form: FormError,
+    /// The peer's parameters when the peer plays the bench.
+    pub peer: Option<serde_json::Map<String, serde_json::Value>>,
+}
+
+impl Truth {
+    /// The Rust model with these parameters, nothing else.
+    #[cfg(test)]
+    pub fn rust(params: Params) -> Self {
+        Truth {
+            params,
+            form: FormError::none(),
+            peer: None,
+        }
+    }
+
+    /// The bench `sim` with the known model's structure, its form error, and the hidden
+    /// effects at the drawn magnitudes.
+    pub fn new(
+        sim: Simulator,
+        known: &Params,
+        hidden: &[Effect],
+        drawn: &[(&'static str, f64)],
+        form: &FormError,
+    ) -> Self {
+        let mut base = known.clone();
+        form.apply(&mut base);
+        Truth {
+            params: with_hidden(&base, hidden, drawn),
+            form: form.clone(),
+            peer: (sim == Simulator::Peer).then(|| peer_variant(known, hidden, drawn, form)),
+        }
+    }
+}
+
+/// Sampled, noisy, quantised data of the Rust model `truth` under experiment `kind`.
+#[cfg(test)]
 pub fn measure(truth: &Params, kind: Kind, seed: u64) -> Result<(Experiment, Measured), String> {
     let sp = SensorParams {
         seed,
         ..SensorParams::default()
     };
-    measure_with(truth, kind, &sp)
+    measure_truth(&Truth::rust(truth.clone()), kind, &sp)
 }
 
-/// The same through an acquisition of the given noise and resolution.
-pub fn measure_with(
-    truth: &Params,
-    kind: Kind,
-    sp: &SensorParams,
-) -> Result<(Experiment, Measured), String> {
+/// Weight of the new sample in a first-order lag of time constant `tau` sampled every
+/// PERIOD (exact for a signal held between samples); 1 without lag.
+fn lag_weight(tau: f64) -> f64 {
+    if tau > 0.0 {
+        1.0 - (-PERIOD / tau).exp()
+    } else {
+        1.0
+    }
+}
+
+/// Noise-free samples of the bench under the experiment: per sample [reference or
+/// command, y, P1, P2, u1] as the sensors deliver them (after their lags) and as applied.
+fn raw(truth: &Truth, kind: Kind) -> Result<(Experiment, Vec<[f64; 5]>), String> {
     let (experiment, duration, f) = signal(kind);
     let n = (duration / PERIOD).round() as usize;
-    let mut y_s = Sensor::new(sp, Channel::Position, 0);
-    let mut p1_s = Sensor::new(sp, Channel::Pressure, 1);
-    let mut p2_s = Sensor::new(sp, Channel::Pressure, 2);
-    let mut u_s = Sensor::new(sp, Channel::Exact, 3);
-    let mut rows: Vec<[f64; 6]> = Vec::with_capacity(n);
+    let signal: Vec<f64> = (0..n).map(|k| f(k as f64 * PERIOD)).collect();
+    if let Some(variant) = &truth.peer {
+        return Ok((
+            experiment.clone(),
+            peer::run(variant, &experiment, &signal, PERIOD)?,
+        ));
+    }
     let kp = match &experiment.drive {
         Drive::Proportional { kp, .. } => Some(*kp),
         Drive::OpenLoop => None,
     };
-    run(truth, &experiment, n, PERIOD, &mut |k, s| {
-        let t = k as f64 * PERIOD;
-        let (y, p1, p2) = (y_s.measure(s.y), p1_s.measure(s.p1), p2_s.measure(s.p2));
-        let r = f(t);
+    let (wy, wp) = (
+        lag_weight(truth.form.lvdt_lag),
+        lag_weight(truth.form.pressure_lag),
+    );
+    let mut rows: Vec<[f64; 5]> = Vec::with_capacity(n);
+    run(&truth.params, &experiment, n, PERIOD, &mut |k, s| {
+        // the sensors' lags: the loop acts on the lagged LVDT, as on a bench whose LVDT
+        // conditioner filters
+        let lag = |prev: f64, now: f64, w: f64| {
+            if w < 1.0 {
+                prev + w * (now - prev)
+            } else {
+                now
+            }
+        };
+        let (y, p1, p2) = match rows.last() {
+            Some(&[_, y, p1, p2, _]) => (lag(y, s.y, wy), lag(p1, s.p1, wp), lag(p2, s.p2, wp)),
+            None => (s.y, s.p1, s.p2),
+        };
+        let r = signal[k];
         // The controller acts on the sample before the recording's noise: on the bench the
         // same LVDT feeds both, but noise fed back excites the nearly undamped oil-column
         // resonance of a model without friction and leakage (30 bar RMS in P1 on the sweep,
         // measured), a random disturbance no deterministic model can reproduce.
         let u = match kp {
-            Some(kp) => (kp * (r - s.y)).clamp(-COMMAND_LIMIT, COMMAND_LIMIT),
+            Some(kp) => (kp * (r - y)).clamp(-COMMAND_LIMIT, COMMAND_LIMIT),
             None => r,
         };
+        rows.push([r, y, p1, p2, u]);
+        [u, -u]
+    })?;
+    Ok((experiment, rows))
+}
+
+/// Sampled, noisy, quantised data of the bench `truth` under experiment `kind`.
+pub fn measure_truth(
+    truth: &Truth,
+    kind: Kind,
+    sp: &SensorParams,
+) -> Result<(Experiment, Measured), String> {
+    let (experiment, rows) = raw(truth, kind)?;
+    let mut y_s = Sensor::new(sp, Channel::Position, 0);
+    let mut p1_s = Sensor::new(sp, Channel::Pressure, 1);
+    let mut p2_s = Sensor::new(sp, Channel::Pressure, 2);
+    let mut u_s = Sensor::new(sp, Channel::Exact, 3);
+    let mut columns: BTreeMap<String, Vec<f64>> = ["y", "P1", "P2", "u1", "u2"]
+        .iter()
+        .map(|c| (c.to_string(), Vec::with_capacity(rows.len())))
+        .collect();
+    let closed = matches!(experiment.drive, Drive::Proportional { .. });
+    let mut reference = Vec::with_capacity(rows.len());
+    for &[r, y, p1, p2, u] in &rows {
         // recorded through the 16-bit converter, applied exactly: quantisation steps fed
         // to the undamped effect-free model ring its resonance too
         let recorded = u_s.measure(u);
-        rows.push([r, y, p1, p2, recorded, -recorded]);
-        [u, -u]
-    })?;
-    let col = |i: usize| rows.iter().map(|r| r[i]).collect::<Vec<_>>();
-    let mut columns = std::collections::BTreeMap::from([
-        ("y".to_string(), col(1)),
-        ("P1".to_string(), col(2)),
-        ("P2".to_string(), col(3)),
-        ("u1".to_string(), col(4)),
-        ("u2".to_string(), col(5)),
-    ]);
-    if kp.is_some() {
-        columns.insert("y_ref".into(), col(0));
+        for (c, x) in [
+            ("y", y_s.measure(y)),
+            ("P1", p1_s.measure(p1)),
+            ("P2", p2_s.measure(p2)),
+            ("u1", recorded),
+            ("u2", -recorded),
+        ] {
+            columns.get_mut(c).expect("column").push(x);
+        }
+        reference.push(r);
     }
-    let time = (0..n).map(|k| k as f64 * PERIOD).collect();
+    if closed {
+        columns.insert("y_ref".into(), reference);
+    }
+    let time = (0..rows.len()).map(|k| k as f64 * PERIOD).collect();
     Ok((experiment, Measured { time, columns }))
+}
+
+/// A plausible magnitude of each parameter of a hidden effect: the candidate's ranges,
+/// or for the payload (an operating condition, not yet a candidate) PAYLOAD_RANGE.
+fn draw_hidden(hidden: &[Effect], rng: &mut Pcg64) -> Vec<(&'static str, f64)> {
+    let mut drawn = Vec::new();
+    for &e in hidden {
+        match candidate(e) {
+            Some(c) => drawn.extend(draw(&c, rng)),
+            None => {
+                let [lo, hi] = PAYLOAD_RANGE;
+                drawn.push((
+                    "actuator.payload_mass",
+                    lo + (hi - lo) * rng.random::<f64>(),
+                ));
+            }
+        }
+    }
+    drawn
+}
+
+/// `base` with the hidden effects on at the drawn magnitudes.
+fn with_hidden(base: &Params, hidden: &[Effect], drawn: &[(&'static str, f64)]) -> Params {
+    let mut p = base.clone();
+    for &e in hidden {
+        p.effects.set(e, true);
+        for &needed in e.spec().requires {
+            p.effects.set(needed, true);
+        }
+    }
+    for &(path, v) in drawn {
+        hbmodel::effects::param(path)
+            .expect("registered")
+            .set(&mut p, v);
+    }
+    p
 }
 
 /// The known model plus the hidden effects at drawn magnitudes.
@@ -211,22 +343,13 @@ pub fn truth(
     hidden: &[Effect],
     rng: &mut Pcg64,
 ) -> (Params, Vec<(&'static str, f64)>) {
-    let mut p = base.clone();
-    let mut drawn = Vec::new();
-    for &e in hidden {
-        p.effects.set(e, true);
-        let c = candidate(e).expect("hidden effects are candidates");
-        for (path, v) in draw(&c, rng) {
-            hbmodel::effects::param(path)
-                .expect("registered")
-                .set(&mut p, v);
-            drawn.push((path, v));
-        }
-        for &needed in e.spec().requires {
-            p.effects.set(needed, true);
-        }
-    }
-    (p, drawn)
+    let drawn = draw_hidden(hidden, rng);
+    (with_hidden(base, hidden, &drawn), drawn)
+}
+
+/// Effects `hide` can hide: the candidates and the payload.
+pub fn hideable(e: Effect) -> bool {
+    candidate(e).is_some() || e == Effect::Payload
 }
 
 /// `PATH=VALUE` settings of registry parameters, checked against their bounds.
@@ -249,47 +372,71 @@ pub fn parse_setting(s: &str) -> Result<(String, f64), String> {
     Ok((spec.path.to_string(), v))
 }
 
+/// What `hbench hide` is asked for.
+pub struct Options<'a> {
+    pub effects: &'a [String],
+    pub kind: Kind,
+    pub seed: u64,
+    pub at: &'a [(String, f64)],
+    pub base: Option<&'a Path>,
+    pub out: &'a Path,
+    pub force: bool,
+    pub simulator: Simulator,
+    /// Draw a model-form error (FormError::draw) on top of the simulator's own.
+    pub form_error: bool,
+}
+
 /// `hbench hide`.
-pub fn main(
-    effects: &[String],
-    kind: Kind,
-    seed: u64,
-    at: &[(String, f64)],
-    base: Option<&Path>,
-    out: &Path,
-    force: bool,
-) -> Result<(), String> {
-    let hidden: Vec<Effect> = effects
+pub fn main(o: &Options) -> Result<(), String> {
+    let (kind, seed, out) = (o.kind, o.seed, o.out);
+    let hidden: Vec<Effect> = o
+        .effects
         .iter()
         .filter(|n| n.as_str() != "none")
         .map(|n| {
             Effect::from_name(n)
-                .filter(|e| candidate(*e).is_some())
+                .filter(|e| hideable(*e))
                 .ok_or_else(|| {
                     format!(
-                        "'{n}' is not an effect the workflow can hide; known: {}",
+                        "'{n}' is not an effect the workflow can hide; known: {}, payload",
                         super::effects::names().join(", ")
                     )
                 })
         })
         .collect::<Result<_, _>>()?;
     let mut rng = Pcg64::seed_from_u64(seed);
-    let base = match base {
+    // with model-form error the known model is section 4.4's, never the truth's structure
+    let known = match o.base {
         Some(f) => Params::load(f).map_err(|e| e.to_string())?,
+        None if o.form_error || o.simulator == Simulator::Peer => section_4_4(),
         None => Params::default(),
     };
-    let (mut p, mut drawn) = truth(&base, &hidden, &mut rng);
+    let mut drawn = draw_hidden(&hidden, &mut rng);
     // magnitudes the user fixes replace the drawn ones
-    for (path, v) in at {
+    for (path, v) in o.at {
         let spec = hbmodel::effects::param(path).expect("checked by parse_setting");
-        spec.set(&mut p, *v);
         drawn.retain(|(d, _)| *d != spec.path);
         drawn.push((spec.path, *v));
     }
-    let (experiment, measured) = measure(&p, kind, seed)?;
+    let form = if o.form_error {
+        FormError::for_seed(o.simulator, seed)
+    } else {
+        FormError::none()
+    };
+    let truth = Truth::new(o.simulator, &known, &hidden, &drawn, &form);
+    let sp = SensorParams {
+        seed,
+        ..SensorParams::default()
+    };
+    let (experiment, measured) = measure_truth(&truth, kind, &sp)?;
     std::fs::create_dir_all(out).map_err(|e| format!("cannot create {}: {e}", out.display()))?;
-    let files = ["measured.csv", "experiment.toml", "answer.json"];
-    if !force {
+    let files = [
+        "measured.csv",
+        "experiment.toml",
+        "answer.json",
+        "known_model.toml",
+    ];
+    if !o.force {
         if let Some(f) = files.iter().find(|f| out.join(f).exists()) {
             return Err(format!(
                 "{} exists; use --force or another --out",
@@ -302,7 +449,10 @@ pub fn main(
     };
     write("measured.csv", measured.to_csv())?;
     write("experiment.toml", experiment.to_toml())?;
+    // the model to give `gap --model`: what is known, not the truth
+    write("known_model.toml", known.to_toml())?;
     let answer = json!({
+        "bench": describe(o.simulator, &form, truth.peer.as_ref()),
         "hidden": hidden.iter().map(|e| e.name()).collect::<Vec<_>>(),
         "parameters": drawn.iter().map(|(k, v)| (k.to_string(), json!(v))).collect::<serde_json::Map<_, _>>(),
         "experiment": kind.name(),
@@ -314,7 +464,7 @@ pub fn main(
         serde_json::to_string_pretty(&answer).map_err(|e| e.to_string())?,
     )?;
     println!(
-        "wrote {0}/measured.csv ({1} samples), {0}/experiment.toml and the answer in {0}/answer.json",
+        "wrote {0}/measured.csv ({1} samples), {0}/experiment.toml, the known model in {0}/known_model.toml and the answer in {0}/answer.json",
         out.display(),
         measured.time.len()
     );

@@ -15,7 +15,9 @@ pub mod drive;
 pub mod effects;
 pub mod fit;
 pub mod hide;
+pub mod peer;
 mod report;
+pub mod variants;
 
 use std::path::{Path, PathBuf};
 
