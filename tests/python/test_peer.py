@@ -159,3 +159,10 @@ def _setup(argv, variant):
     args = bench_peer.parse(argv)
     b = Bench({"mode": args.mode, **variant})
     return b, bench_peer.Experiment(args, b)
+
+
+def test_null_bias_is_the_command_at_the_hydraulic_null():
+    """Same convention as the Rust registry's sv2.null_bias: spool ~ (u - bias)."""
+    b = Bench({"sv2.null_bias": 0.2})
+    assert b.spool(1, 0.2, None) == 0.0
+    assert b.spool(1, 0.0, None) < 0.0 < b.spool(0, 0.1, None)

@@ -81,7 +81,7 @@ DEFAULTS = {
     "manifold.loss_scale": 0.0,  # x MANIFOLD_LOSS
     "sv1.rated_flow": 19e-3 / 60.0,  # 19 L/min at 70 bar (Table 1.1)
     "sv2.rated_flow": 19e-3 / 60.0,
-    "sv1.null_bias": 0.0,  # V
+    "sv1.null_bias": 0.0,  # V: the command at which the spool sits at its hydraulic null
     "sv2.null_bias": 0.0,
     "sv1.natural_frequency": 0.0,  # 0: static valve (chapter II's control model)
     "sv2.natural_frequency": 0.0,
@@ -198,7 +198,7 @@ class Bench:
         if i is not None:
             return x[i] * RATED_SPOOL_STROKE
         bias = self.p[f"sv{valve + 1}.null_bias"]
-        return (u + bias) / RATED_INPUT * RATED_SPOOL_STROKE
+        return (u - bias) / RATED_INPUT * RATED_SPOOL_STROKE
 
     def port_flows(self, valve, xs, p_a, p_b):
         """Flows into ports A and B (m3/s) at spool position xs (2.18): edges 1 (P-A) and
@@ -256,7 +256,7 @@ class Bench:
             if i is not None:
                 w = self.p[f"sv{valve + 1}.natural_frequency"]
                 z = self.p[f"sv{valve + 1}.damping"]
-                target = (u + self.p[f"sv{valve + 1}.null_bias"]) / RATED_INPUT
+                target = (u - self.p[f"sv{valve + 1}.null_bias"]) / RATED_INPUT
                 dx[i] = x[i + 1]
                 dx[i + 1] = w * w * (target - x[i]) - 2 * z * w * x[i + 1]
         if self.i_lvdt is not None:
@@ -301,7 +301,7 @@ class Bench:
         for valve, u in ((0, u1), (1, u2)):
             i = self.i_spool[valve]
             if i is not None:
-                x[i] = (u + self.p[f"sv{valve + 1}.null_bias"]) / RATED_INPUT
+                x[i] = (u - self.p[f"sv{valve + 1}.null_bias"]) / RATED_INPUT
                 x[i + 1] = 0.0
 
     def natural_frequencies(self, y):
