@@ -44,6 +44,11 @@ pub struct Tolerances {
     pub atol: Vec<f64>,
 }
 
+/// Shortest carried step, as a fraction of the next interval, used to seed it: shorter
+/// ones are dropped for diffsol's own start-up estimate. 1e-9 keeps every step a stiff
+/// interval of the bench carries (~1e-7 s over 1e-3 s intervals) and drops a 1e-15 s one.
+const MIN_CARRIED_STEP: f64 = 1e-9;
+
 /// Relative perturbation of the finite-difference Jacobian: sqrt of machine epsilon.
 const FD_EPS: f64 = 1.490_116_119_384_765_6e-8;
 
@@ -150,8 +155,11 @@ where
         message: e.to_string(),
     };
     let mut state = problem.bdf_state::<NalgebraLU<f64>>().map_err(fail)?;
+    // a carried step far shorter than the interval is the trace of a tiny interval
+    // (fmi2DoStep by 1e-15 s), not of the dynamics: seeding with it makes diffsol give up
+    // ("step size is too small") on every later interval (issue 16, item 1)
     if let Some(h) = *step {
-        if h.is_finite() && h > 0.0 {
+        if h.is_finite() && h > 0.0 && h >= MIN_CARRIED_STEP * (t1 - t0) {
             *state.as_mut().h = h;
         }
     }
@@ -179,7 +187,9 @@ where
         }
     }
     stats.steps += 1;
-    *step = free_step.or(*step).or(Some(solver.state().h.abs()));
+    // only a step the solver chose is carried: the one cut to land on t1 says nothing
+    // of the dynamics
+    *step = free_step.or(*step);
     let y = solver.state().y.clone_as_vec();
     x.copy_from_slice(&y);
     stats.rhs_evaluations += *calls.borrow();

@@ -406,4 +406,8 @@ impl Model for ActuatorFmu {
         self.act = None;
         self.refresh()
     }
+
+    fn relative_tolerance(&mut self) -> Option<&mut f64> {
+        Some(&mut self.params_mut().solver.rtol)
+    }
 }

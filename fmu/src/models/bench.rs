@@ -241,4 +241,8 @@ impl Model for BenchFmu {
         }
         self.refresh()
     }
+
+    fn relative_tolerance(&mut self) -> Option<&mut f64> {
+        Some(&mut self.params_mut().solver.rtol)
+    }
 }

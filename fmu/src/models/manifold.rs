@@ -407,4 +407,8 @@ impl Model for ManifoldFmu {
         self.circuit = None;
         self.refresh()
     }
+
+    fn relative_tolerance(&mut self) -> Option<&mut f64> {
+        Some(&mut self.params_mut().solver.rtol)
+    }
 }
