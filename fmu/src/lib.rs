@@ -526,7 +526,7 @@ pub unsafe extern "C" fn fmi2GetFMUstate(c: Component_, state: *mut FmuState) ->
         // a slot that holds something must hold one of ours, which is then replaced
         if !(*state).is_null() && !is_state(*state) {
             comp.logger()
-                .error("fmi2GetFMUstate: *FMUstate is neither NULL nor a state of this FMU");
+                .error("fmi2GetFMUstate: *FMUstate is not NULL and not a state of this FMU");
             return Status::Error;
         }
         match comp.get_state() {
