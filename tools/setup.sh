@@ -2,6 +2,7 @@
 # Installs what the build and the tests need beyond the Rust toolchain, idempotently:
 # - libclang (Debian's libclang-dev): the `fmi` crate, our independent FMU importer in
 #   the Rust tests, runs bindgen when it builds;
+# - valgrind (Debian's valgrind): tests/python/test_valgrind.py runs the FMUs under memcheck;
 # - a Python venv in .venv with fmpy, pytest and lxml (requirements in tools/requirements.txt).
 set -euo pipefail
 cd "$(dirname "$0")/.."
@@ -12,6 +13,14 @@ if ! dpkg -s libclang-dev >/dev/null 2>&1; then
     [ "$(id -u)" -ne 0 ] && SUDO="sudo"
     $SUDO apt-get update -qq
     DEBIAN_FRONTEND=noninteractive $SUDO apt-get install -y -qq libclang-dev >/dev/null
+fi
+
+if ! dpkg -s valgrind >/dev/null 2>&1; then
+    echo "setup: installing valgrind" >&2
+    SUDO=""
+    [ "$(id -u)" -ne 0 ] && SUDO="sudo"
+    $SUDO apt-get update -qq
+    DEBIAN_FRONTEND=noninteractive $SUDO apt-get install -y -qq valgrind >/dev/null
 fi
 
 if [ ! -x .venv/bin/python ] || ! .venv/bin/python -c "import fmpy, pytest, lxml, dask.distributed, matplotlib, tqdm" 2>/dev/null; then
