@@ -127,10 +127,7 @@ pub fn resources_or_warn(uri: Option<&str>, is_null: bool, log: &Logger) -> Opti
         return None;
     };
     if !dir.is_dir() {
-        warn(format!(
-            "fmuResourceLocation {uri:?} names {}, which is not a directory",
-            dir.display()
-        ));
+        // an FMU without resources (the controller's) leaves nothing to read: no warning
         return None;
     }
     let nested = dir.join("resources").join(PARAMETER_FILE);
