@@ -187,9 +187,9 @@ where
         }
     }
     stats.steps += 1;
-    // only a step the solver chose is carried: the one cut to land on t1 says nothing
-    // of the dynamics
-    *step = free_step.or(*step);
+    // the step cut to land on t1 is carried only when nothing better is known; a tiny one
+    // is then dropped when it seeds the next interval (see MIN_CARRIED_STEP)
+    *step = free_step.or(*step).or(Some(solver.state().h.abs()));
     let y = solver.state().y.clone_as_vec();
     x.copy_from_slice(&y);
     stats.rhs_evaluations += *calls.borrow();
