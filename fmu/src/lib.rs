@@ -10,83 +10,16 @@ pub mod docs;
 pub mod ffi;
 pub mod instance;
 pub mod models;
+pub mod registry;
 pub mod slave;
 
-use std::collections::BTreeSet;
 use std::ffi::{c_char, c_void};
 use std::panic::{catch_unwind, AssertUnwindSafe};
-use std::sync::Mutex;
 
 use ffi::*;
 use instance::{c_str, Component, Kind, Logger};
+use registry::{free_state, is_state, live, new_state, StateBox};
 use slave::Value;
-
-/// Live instances, so a stale or foreign pointer is refused instead of dereferenced.
-/// A plain static (not a lazily built one) so that unloading the library frees it.
-static LIVE: Mutex<BTreeSet<usize>> = Mutex::new(BTreeSet::new());
-
-/// Live FMU states, for the same reason: fmi2SetFMUstate and the others refuse a pointer
-/// that is not one of ours instead of dereferencing it (issue 16, item 8).
-static STATES: Mutex<BTreeSet<usize>> = Mutex::new(BTreeSet::new());
-
-fn live() -> &'static Mutex<BTreeSet<usize>> {
-    &LIVE
-}
-
-fn is_state(p: FmuState) -> bool {
-    !p.is_null()
-        && STATES
-            .lock()
-            .map(|s| s.contains(&(p as usize)))
-            .unwrap_or(false)
-}
-
-/// Hand a new state to the host, registered.
-fn new_state(s: StateBox) -> FmuState {
-    let p = Box::into_raw(Box::new(s)) as FmuState;
-    if let Ok(mut set) = STATES.lock() {
-        set.insert(p as usize);
-    }
-    p
-}
-
-/// Free a state of ours; false (and nothing done) for any other pointer.
-///
-/// # Safety
-/// A registered pointer is one `new_state` made and nobody freed.
-unsafe fn free_state(p: FmuState) -> bool {
-    let known = !p.is_null()
-        && STATES
-            .lock()
-            .map(|mut s| s.remove(&(p as usize)))
-            .unwrap_or(false);
-    if known {
-        drop(Box::from_raw(p as *mut StateBox));
-    }
-    known
-}
-
-/// Runs when the host unloads the library (dlclose): frees the registries and the model
-/// descriptions cached for GUID lookup, which otherwise stay behind at every reload
-/// (issue 16, item 4: 255 kB per reload). Instances and states the host did not free are
-/// left alone: their memory is the host's to leak. An ELF `.fini_array` entry is the
-/// loader's own unload hook; no crate is needed for one function pointer.
-extern "C" fn unload() {
-    let _ = catch_unwind(|| {
-        if let Ok(mut l) = LIVE.lock() {
-            std::mem::take(&mut *l);
-        }
-        if let Ok(mut s) = STATES.lock() {
-            std::mem::take(&mut *s);
-        }
-        models::forget_guids();
-    });
-}
-
-#[cfg(target_os = "linux")]
-#[used]
-#[link_section = ".fini_array"]
-static UNLOAD: extern "C" fn() = unload;
 
 type Boxed = Box<dyn Component>;
 
@@ -510,8 +443,6 @@ pub unsafe extern "C" fn fmi2SetString(
         Status::Error
     })
 }
-
-type StateBox = Box<dyn std::any::Any + Send>;
 
 /// # Safety
 /// `state` must be null or point to an fmi2FMUstate slot.
