@@ -1,17 +1,23 @@
 #!/usr/bin/env bash
 # Installs what the build and the tests need beyond the Rust toolchain, idempotently:
-# - libclang (Debian's libclang-dev): the `fmi` crate, our independent FMU importer in
-#   the Rust tests, runs bindgen when it builds;
-# - a Python venv in .venv with fmpy, pytest and lxml (requirements in tools/requirements.txt).
+# - Debian's libclang-dev: the `fmi` crate, our independent FMU importer in the Rust
+#   tests, runs bindgen when it builds;
+# - Debian's valgrind: tests/python/test_valgrind.py runs the FMUs under memcheck;
+# - a Python venv in .venv with fmpy, pytest, lxml, scipy (the peer simulator) and the rest
+#   of tools/requirements.txt.
 set -euo pipefail
 cd "$(dirname "$0")/.."
 
-if ! dpkg -s libclang-dev >/dev/null 2>&1; then
-    echo "setup: installing libclang-dev" >&2
+missing=()
+for pkg in libclang-dev valgrind; do
+    dpkg -s "$pkg" >/dev/null 2>&1 || missing+=("$pkg")
+done
+if ((${#missing[@]})); then
+    echo "setup: installing ${missing[*]}" >&2
     SUDO=""
     [ "$(id -u)" -ne 0 ] && SUDO="sudo"
     $SUDO apt-get update -qq
-    DEBIAN_FRONTEND=noninteractive $SUDO apt-get install -y -qq libclang-dev >/dev/null
+    DEBIAN_FRONTEND=noninteractive $SUDO apt-get install -y -qq "${missing[@]}" >/dev/null
 fi
 
 if [ ! -x .venv/bin/python ] || ! .venv/bin/python -c "import fmpy, pytest, lxml, dask.distributed, matplotlib, tqdm, scipy" 2>/dev/null; then

@@ -22,7 +22,7 @@ pub const LOG_CATEGORIES: [(&str, &str); 3] = [
 ];
 
 /// FMI 2.0 Co-Simulation states (standard section 4.2.4).
-#[derive(Debug, Clone, Copy, PartialEq, Eq)]
+#[derive(Debug, Clone, Copy, PartialEq, Eq, serde::Serialize, serde::Deserialize)]
 pub enum State {
     Instantiated,
     InitializationMode,
@@ -97,6 +97,25 @@ impl Logger {
     pub fn error(&self, message: &str) {
         self.log(Status::Error, 0, message);
     }
+
+    /// A warning the host always sees, logging on or off: kept for what a user must not
+    /// miss, such as a parameter file that is not read.
+    pub fn warn(&self, message: &str) {
+        let Some(cb) = self.callback else { return };
+        let cat = CString::new(LOG_CATEGORIES[1].0).unwrap_or_default();
+        let msg = CString::new(message.replace('\0', " ")).unwrap_or_default();
+        // SAFETY: as in `log`
+        unsafe {
+            cb(
+                self.environment,
+                self.instance_name.as_ptr(),
+                Status::Warning,
+                cat.as_ptr(),
+                c"%s".as_ptr(),
+                msg.as_ptr(),
+            )
+        };
+    }
 }
 
 /// The operations the exported functions need, whatever the model.
@@ -136,12 +155,32 @@ pub struct Instance<M: Model> {
     state: State,
     pub log: Logger,
     resources: Option<std::path::PathBuf>,
+    /// The master's clock: the models run on time since `start_time` (0 at
+    /// initialization), so that a start at t0 = 1.7e9 s integrates exactly as one at 0
+    /// (issue 16, item 5); `clock` is the master's time of the model's current instant.
     start_time: f64,
+    clock: f64,
     stop_time: Option<f64>,
 }
 
-/// Magic and version of a serialized state: anything else is refused.
-const STATE_MAGIC: &[u8; 8] = b"HBSTATE1";
+/// A complete FMU state: the model's and the instance's (life-cycle state and clock),
+/// so a state restored from bytes resumes exactly where and as the saved one was.
+#[derive(Clone, serde::Serialize, serde::Deserialize)]
+pub struct Saved<S> {
+    state: State,
+    start_time: f64,
+    clock: f64,
+    model: S,
+}
+
+/// Magic and version of a serialized state: anything else is refused. Version 2 holds
+/// the life-cycle state and the clock besides the model's state.
+const STATE_MAGIC: &[u8; 8] = b"HBSTATE2";
+
+/// Communication points may differ from the instance's clock by rounding: a master that
+/// computes t0 + n h instead of summing steps lands a few ulps off. This many ulps of the
+/// time, plus 1e-9 of the elapsed time, are accepted; at t0 = 1e9 s that is 3.6 us.
+const CLOCK_ULPS: f64 = 16.0;
 
 impl<M: Model> Instance<M> {
     /// A new instance; on failure the logger comes back so the caller can report.
@@ -160,8 +199,78 @@ impl<M: Model> Instance<M> {
             log,
             resources,
             start_time: 0.0,
+            clock: 0.0,
             stop_time: None,
         })
+    }
+
+    /// The first Real output that is not a finite number, as a message.
+    fn non_finite_output(&self) -> Option<String> {
+        self.vars.iter().find_map(|var| {
+            if var.decl.causality != modeldesc::Causality::Output {
+                return None;
+            }
+            match (var.get)(&self.model) {
+                Value::Real(x) if !x.is_finite() => {
+                    Some(format!("output {} is {x}", var.decl.name))
+                }
+                _ => None,
+            }
+        })
+    }
+
+    /// Refuse to go on with a non-finite output: no call answers fmi2OK with one.
+    fn guard_outputs(&mut self, call: &str) -> Status {
+        match self.non_finite_output() {
+            None => Status::Ok,
+            Some(what) => self.fail(
+                Status::Error,
+                format!("{call}: {what}; the instance is in the error state (set a saved FMU state to go on)"),
+            ),
+        }
+    }
+
+    /// Restore `saved` into a fresh model of the same resources, refusing any content
+    /// the model does not accept or that gives non-finite outputs: a checksum proves
+    /// only that the bytes are the ones written, not that they make a valid state.
+    fn check_content(&self, saved: &Saved<M::Snapshot>) -> Result<(), String> {
+        let finite_clock = saved.start_time.is_finite()
+            && saved.clock.is_finite()
+            && saved.clock >= saved.start_time;
+        if !finite_clock || saved.state == State::Error {
+            return Err(format!(
+                "impossible life cycle or clock ({:?}, start {}, clock {})",
+                saved.state, saved.start_time, saved.clock
+            ));
+        }
+        let snap = saved.model.clone();
+        let resources = self.resources.clone();
+        let trial = std::panic::catch_unwind(std::panic::AssertUnwindSafe(
+            move || -> Result<Option<String>, String> {
+                let mut m = M::instantiate(resources.as_deref())?;
+                m.restore(snap)?;
+                if !m.time().is_finite() || m.time() < 0.0 {
+                    return Err(format!(
+                        "model time {} is not a time since the start",
+                        m.time()
+                    ));
+                }
+                let vars = M::variables();
+                Ok(vars.iter().find_map(|var| match (var.get)(&m) {
+                    Value::Real(x)
+                        if var.decl.causality == modeldesc::Causality::Output && !x.is_finite() =>
+                    {
+                        Some(format!("output {} would be {x}", var.decl.name))
+                    }
+                    _ => None,
+                }))
+            },
+        ));
+        match trial {
+            Ok(Ok(None)) => Ok(()),
+            Ok(Ok(Some(why))) | Ok(Err(why)) => Err(why),
+            Err(_) => Err("the model cannot hold this content (internal check failed)".into()),
+        }
     }
 
     fn fail(&mut self, status: Status, message: String) -> Status {
@@ -215,7 +324,7 @@ impl<M: Model> Component for Instance<M> {
 
     fn setup_experiment(
         &mut self,
-        _tolerance: Option<f64>,
+        tolerance: Option<f64>,
         start: f64,
         stop: Option<f64>,
     ) -> Status {
@@ -228,7 +337,27 @@ impl<M: Model> Component for Instance<M> {
                 format!("invalid experiment interval [{start}, {stop:?}]"),
             );
         }
+        if let Some(tol) = tolerance {
+            // the registry's bounds of the integrator's relative tolerance
+            let (lo, hi) =
+                hbmodel::effects::param("solver.rtol").map_or((1e-12, 1e-2), |p| (p.min, p.max));
+            if !(tol.is_finite() && (lo..=hi).contains(&tol)) {
+                return self.fail(
+                    Status::Error,
+                    format!("fmi2SetupExperiment: tolerance {tol} lies outside [{lo}, {hi}]"),
+                );
+            }
+            match self.model.relative_tolerance() {
+                Some(rtol) => *rtol = tol,
+                None => self.log.log(
+                    Status::Ok,
+                    2,
+                    &format!("tolerance {tol} not used: this model has no integrator"),
+                ),
+            }
+        }
         self.start_time = start;
+        self.clock = start;
         self.stop_time = stop;
         Status::Ok
     }
@@ -237,7 +366,8 @@ impl<M: Model> Component for Instance<M> {
         if let Err(s) = self.require(&[State::Instantiated], "fmi2EnterInitializationMode") {
             return s;
         }
-        match self.model.initialize(self.start_time) {
+        self.clock = self.start_time;
+        match self.model.initialize(0.0) {
             Ok(()) => {
                 self.state = State::InitializationMode;
                 self.log.log(Status::Ok, 2, "entered initialization mode");
@@ -255,7 +385,7 @@ impl<M: Model> Component for Instance<M> {
         match self.model.refresh() {
             Ok(()) => {
                 self.state = State::StepComplete;
-                Status::Ok
+                self.guard_outputs("fmi2ExitInitializationMode")
             }
             Err(e) => self.fail(Status::Error, format!("cannot initialize: {e}")),
         }
@@ -276,6 +406,7 @@ impl<M: Model> Component for Instance<M> {
                 self.model = m;
                 self.state = State::Instantiated;
                 self.start_time = 0.0;
+                self.clock = 0.0;
                 self.stop_time = None;
                 Status::Ok
             }
@@ -310,6 +441,18 @@ impl<M: Model> Component for Instance<M> {
         }
         if var.decl.causality == modeldesc::Causality::Output {
             self.model.refresh().map_err(|e| (Status::Error, e))?;
+            if let Value::Real(x) = (var.get)(&self.model) {
+                if !x.is_finite() {
+                    self.state = State::Error;
+                    return Err((
+                        Status::Error,
+                        format!(
+                            "output {} is {x}; the instance is in the error state",
+                            var.decl.name
+                        ),
+                    ));
+                }
+            }
         }
         Ok((var.get)(&self.model))
     }
@@ -356,18 +499,22 @@ impl<M: Model> Component for Instance<M> {
         if let Err(s) = self.require(&[State::StepComplete], "fmi2DoStep") {
             return s;
         }
-        let now = self.model.time();
+        let now = self.clock;
         if h.is_nan() || h <= 0.0 || !h.is_finite() || !t.is_finite() {
             return self.fail(Status::Error, format!("invalid step: t = {t}, h = {h}"));
         }
-        if (t - now).abs() > 1e-9 * now.abs().max(1.0) {
+        let slack = CLOCK_ULPS * f64::EPSILON * now.abs() + 1e-9 * (now - self.start_time).max(1.0);
+        if (t - now).abs() > slack {
             return self.fail(
                 Status::Error,
                 format!("fmi2DoStep at t = {t} but the instance is at t = {now}"),
             );
         }
         match self.model.do_step(h).and_then(|_| self.model.refresh()) {
-            Ok(()) => Status::Ok,
+            Ok(()) => {
+                self.clock = t + h;
+                self.guard_outputs("fmi2DoStep")
+            }
             Err(e) => {
                 // the model keeps its state at t; the master may retry with a smaller step
                 self.state = State::StepFailed;
@@ -382,30 +529,37 @@ impl<M: Model> Component for Instance<M> {
     }
 
     fn time(&self) -> f64 {
-        self.model.time()
+        self.clock
     }
 
     fn get_state(&mut self) -> Result<Box<dyn std::any::Any + Send>, (Status, String)> {
         if matches!(self.state, State::Error) {
             return Err((Status::Error, "no state to get in the error state".into()));
         }
-        Ok(Box::new((self.model.snapshot(), self.state)))
+        Ok(Box::new(Saved {
+            state: self.state,
+            start_time: self.start_time,
+            clock: self.clock,
+            model: self.model.snapshot(),
+        }))
     }
 
     fn set_state(&mut self, s: &(dyn std::any::Any + Send)) -> Status {
-        let Some((snap, state)) = s.downcast_ref::<(M::Snapshot, State)>() else {
+        let Some(saved) = s.downcast_ref::<Saved<M::Snapshot>>() else {
             return self.fail(
                 Status::Error,
                 "the FMU state belongs to another model".into(),
             );
         };
-        match self.model.restore(snap.clone()) {
+        match self.model.restore(saved.model.clone()) {
             Ok(()) => {
-                self.state = if *state == State::StepFailed {
+                self.state = if saved.state == State::StepFailed {
                     State::StepComplete
                 } else {
-                    *state
+                    saved.state
                 };
+                self.start_time = saved.start_time;
+                self.clock = saved.clock;
                 Status::Ok
             }
             Err(e) => self.fail(Status::Error, format!("cannot restore the state: {e}")),
@@ -413,13 +567,13 @@ impl<M: Model> Component for Instance<M> {
     }
 
     fn serialize(&mut self, s: &(dyn std::any::Any + Send)) -> Result<Vec<u8>, (Status, String)> {
-        let Some((snap, _)) = s.downcast_ref::<(M::Snapshot, State)>() else {
+        let Some(saved) = s.downcast_ref::<Saved<M::Snapshot>>() else {
             return Err((
                 Status::Error,
                 "the FMU state belongs to another model".into(),
             ));
         };
-        let body = serde_json::to_vec(snap).map_err(|e| (Status::Error, e.to_string()))?;
+        let body = serde_json::to_vec(saved).map_err(|e| (Status::Error, e.to_string()))?;
         let mut out = Vec::with_capacity(body.len() + 48);
         out.extend_from_slice(STATE_MAGIC);
         out.extend_from_slice(M::info().model_identifier.as_bytes());
@@ -456,8 +610,10 @@ impl<M: Model> Component for Instance<M> {
         if body.len() != len || Sha256::digest(body)[..16] != *sum {
             return Err(bad("length or checksum mismatch"));
         }
-        let snap: M::Snapshot = serde_json::from_slice(body).map_err(|e| bad(&e.to_string()))?;
-        Ok(Box::new((snap, State::StepComplete)))
+        let saved: Saved<M::Snapshot> =
+            serde_json::from_slice(body).map_err(|e| bad(&e.to_string()))?;
+        self.check_content(&saved).map_err(|why| bad(&why))?;
+        Ok(Box::new(saved))
     }
 }
 

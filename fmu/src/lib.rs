@@ -10,22 +10,16 @@ pub mod docs;
 pub mod ffi;
 pub mod instance;
 pub mod models;
+pub mod registry;
 pub mod slave;
 
-use std::collections::HashSet;
 use std::ffi::{c_char, c_void};
 use std::panic::{catch_unwind, AssertUnwindSafe};
-use std::sync::{Mutex, OnceLock};
 
 use ffi::*;
 use instance::{c_str, Component, Kind, Logger};
+use registry::{free_state, is_state, live, new_state, StateBox};
 use slave::Value;
-
-/// Live instances, so a stale or foreign pointer is refused instead of dereferenced.
-fn live() -> &'static Mutex<HashSet<usize>> {
-    static LIVE: OnceLock<Mutex<HashSet<usize>>> = OnceLock::new();
-    LIVE.get_or_init(|| Mutex::new(HashSet::new()))
-}
 
 type Boxed = Box<dyn Component>;
 
@@ -172,7 +166,8 @@ pub unsafe extern "C" fn fmi2Instantiate(
             log.error("fmi2Instantiate: fmuGUID is NULL");
             return None;
         };
-        let resources = c_str(resource_location).and_then(models::resource_dir);
+        let resources =
+            models::resources_or_warn(c_str(resource_location), resource_location.is_null(), &log);
         match models::instantiate(guid, log, resources) {
             Ok(comp) => Some(comp),
             Err((log, msg)) => {
@@ -449,8 +444,6 @@ pub unsafe extern "C" fn fmi2SetString(
     })
 }
 
-type StateBox = Box<dyn std::any::Any + Send>;
-
 /// # Safety
 /// `state` must be null or point to an fmi2FMUstate slot.
 #[no_mangle]
@@ -461,13 +454,16 @@ pub unsafe extern "C" fn fmi2GetFMUstate(c: Component_, state: *mut FmuState) ->
                 .error("fmi2GetFMUstate: FMUstate pointer is NULL");
             return Status::Error;
         }
+        // a slot that holds something must hold one of ours, which is then replaced
+        if !(*state).is_null() && !is_state(*state) {
+            comp.logger()
+                .error("fmi2GetFMUstate: *FMUstate is not NULL and not a state of this FMU");
+            return Status::Error;
+        }
         match comp.get_state() {
             Ok(s) => {
-                // reuse the host's slot if it already holds one of ours
-                if !(*state).is_null() {
-                    drop(Box::from_raw(*state as *mut StateBox));
-                }
-                *state = Box::into_raw(Box::new(s)) as FmuState;
+                free_state(*state);
+                *state = new_state(s);
                 Status::Ok
             }
             Err(e) => report(comp, "fmi2GetFMUstate", Err(e)),
@@ -480,8 +476,9 @@ pub unsafe extern "C" fn fmi2GetFMUstate(c: Component_, state: *mut FmuState) ->
 #[no_mangle]
 pub unsafe extern "C" fn fmi2SetFMUstate(c: Component_, state: FmuState) -> Status {
     with(c, "fmi2SetFMUstate", |comp| {
-        if state.is_null() {
-            comp.logger().error("fmi2SetFMUstate: FMUstate is NULL");
+        if !is_state(state) {
+            comp.logger()
+                .error("fmi2SetFMUstate: FMUstate is NULL or not a state of this FMU");
             return Status::Error;
         }
         let s: &StateBox = &*(state as *const StateBox);
@@ -493,11 +490,16 @@ pub unsafe extern "C" fn fmi2SetFMUstate(c: Component_, state: FmuState) -> Stat
 /// `state` must be null or point to a slot holding one of our states.
 #[no_mangle]
 pub unsafe extern "C" fn fmi2FreeFMUstate(c: Component_, state: *mut FmuState) -> Status {
-    with(c, "fmi2FreeFMUstate", |_comp| {
-        if !state.is_null() && !(*state).is_null() {
-            drop(Box::from_raw(*state as *mut StateBox));
-            *state = std::ptr::null_mut();
+    with(c, "fmi2FreeFMUstate", |comp| {
+        if state.is_null() || (*state).is_null() {
+            return Status::Ok;
         }
+        if !free_state(*state) {
+            comp.logger()
+                .error("fmi2FreeFMUstate: not a state of this FMU (already freed?)");
+            return Status::Error;
+        }
+        *state = std::ptr::null_mut();
         Status::Ok
     })
 }
@@ -511,9 +513,9 @@ pub unsafe extern "C" fn fmi2SerializedFMUstateSize(
     size: *mut usize,
 ) -> Status {
     with(c, "fmi2SerializedFMUstateSize", |comp| {
-        if state.is_null() || size.is_null() {
+        if !is_state(state) || size.is_null() {
             comp.logger()
-                .error("fmi2SerializedFMUstateSize: NULL argument");
+                .error("fmi2SerializedFMUstateSize: NULL argument or not a state of this FMU");
             return Status::Error;
         }
         let s: &StateBox = &*(state as *const StateBox);
@@ -537,8 +539,9 @@ pub unsafe extern "C" fn fmi2SerializeFMUstate(
     size: usize,
 ) -> Status {
     with(c, "fmi2SerializeFMUstate", |comp| {
-        if state.is_null() || out.is_null() {
-            comp.logger().error("fmi2SerializeFMUstate: NULL argument");
+        if !is_state(state) || out.is_null() {
+            comp.logger()
+                .error("fmi2SerializeFMUstate: NULL argument or not a state of this FMU");
             return Status::Error;
         }
         let s: &StateBox = &*(state as *const StateBox);
@@ -576,7 +579,10 @@ pub unsafe extern "C" fn fmi2DeSerializeFMUstate(
         };
         match comp.deserialize(data) {
             Ok(s) => {
-                *state = Box::into_raw(Box::new(s)) as FmuState;
+                // a slot holding one of our states gets it freed, not leaked (item 8); any
+                // other content is the host's uninitialised slot, overwritten
+                free_state(*state);
+                *state = new_state(s);
                 Status::Ok
             }
             Err(e) => report(comp, "fmi2DeSerializeFMUstate", Err(e)),

@@ -288,6 +288,11 @@ pub trait Model: Sized + Send + 'static {
     fn time(&self) -> f64;
     fn snapshot(&self) -> Self::Snapshot;
     fn restore(&mut self, s: Self::Snapshot) -> Result<(), String>;
+    /// The integrator's relative tolerance, which fmi2SetupExperiment's tolerance sets;
+    /// None for a model without an integrator.
+    fn relative_tolerance(&mut self) -> Option<&mut f64> {
+        None
+    }
 }
 
 /// The model description of a model, value references assigned by position.

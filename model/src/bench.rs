@@ -422,6 +422,20 @@ impl Simulation {
         if !state.t.is_finite() || state.x.iter().any(|v| !v.is_finite()) {
             return Err("state holds non-finite values".into());
         }
+        // a restored state (an FMU state from bytes) must be one the bench can be in:
+        // absolute pressures are positive, a carried step size is a step size
+        let l = self.bench.layout;
+        let pressures = state.x[P1..P1 + 2]
+            .iter()
+            .chain(&state.x[l.nodes..l.passages]);
+        if let Some(p) = pressures.into_iter().find(|p| **p <= 0.0) {
+            return Err(format!(
+                "state holds a non-positive absolute pressure {p} Pa"
+            ));
+        }
+        if state.step.is_some_and(|h| !(h.is_finite() && h > 0.0)) {
+            return Err(format!("state holds an invalid step size {:?}", state.step));
+        }
         self.state = state;
         Ok(())
     }

@@ -6,6 +6,7 @@
 
 pub mod actuator;
 pub mod bench;
+pub mod bounds;
 pub mod control;
 pub mod effects;
 pub mod fluid;

@@ -10,6 +10,7 @@ use std::path::Path;
 
 use serde::{Deserialize, Serialize};
 
+use crate::bounds::{viscosity_in_range, BOUNDS};
 use crate::effects::{Effect, Effects, EFFECTS, PARAMS};
 use crate::fluid::FluidParams;
 use crate::friction::FrictionParams;
@@ -261,7 +262,9 @@ impl Params {
         }
     }
 
-    /// Check every registered parameter against its bounds and the effects' requirements.
+    /// Check every real parameter of the tree against its physical bounds (the registry's
+    /// and [`crate::bounds::BOUNDS`]), the laws' consistency rules and the effects'
+    /// requirements.
     pub fn validate(&self) -> Result<(), ParamError> {
         self.validate_in(IN_MEMORY, None)
     }
@@ -273,29 +276,44 @@ impl Params {
             field: Some(field.to_string()),
             message,
         };
-        for spec in PARAMS {
-            let v = spec.get(self);
+        let bounded = |path: &str, v: f64, min: f64, max: f64, unit: &str| {
             if !v.is_finite() {
-                return Err(err(spec.path, format!("value {v} is not a finite number")));
+                return Err(err(path, format!("value {v} is not a finite number")));
             }
-            if v < spec.min {
+            if v < min {
                 return Err(err(
-                    spec.path,
-                    format!(
-                        "value {v} {} is below its lower bound {} {}",
-                        spec.unit, spec.min, spec.unit
-                    ),
+                    path,
+                    format!("value {v} {unit} is below its lower bound {min} {unit}"),
                 ));
             }
-            if v > spec.max {
+            if v > max {
                 return Err(err(
-                    spec.path,
-                    format!(
-                        "value {v} {} is above its upper bound {} {}",
-                        spec.unit, spec.max, spec.unit
-                    ),
+                    path,
+                    format!("value {v} {unit} is above its upper bound {max} {unit}"),
                 ));
             }
+            Ok(())
+        };
+        for spec in PARAMS {
+            bounded(spec.path, spec.get(self), spec.min, spec.max, spec.unit)?;
+        }
+        for b in BOUNDS {
+            bounded(b.path, (b.get)(self), b.min, b.max, b.unit)?;
+        }
+        for (path, t) in [
+            ("fluid.walther_a3", self.fluid.temperature),
+            ("fluid.walther_a3", self.fluid.reference_temperature),
+        ] {
+            viscosity_in_range(self, t).map_err(|m| err(path, m))?;
+        }
+        if let Err(e) = self.friction.validate() {
+            let crate::friction::FrictionError::Invalid { name, .. } = &e;
+            return Err(err(&format!("friction.{name}"), e.to_string()));
+        }
+        if let Err(e) = self.sensors.validate() {
+            let crate::sensors::SensorError::Invalid { name, .. } = &e;
+            let name = name.split('[').next().unwrap_or(name);
+            return Err(err(&format!("sensors.{name}"), e.to_string()));
         }
         if self.tank_pressure >= self.supply_pressure {
             return Err(err(
@@ -395,7 +413,7 @@ fn line_of(text: &str, path: &str) -> Option<usize> {
     let doc = toml_edit::ImDocument::parse(text.to_string()).ok()?;
     let mut item = doc.as_item();
     for key in path.split('.') {
-        item = item.get(key)?;
+        item = item.get(key.split('[').next().unwrap_or(key))?;
     }
     item.span().map(|s| line_at(text, s.start))
 }
@@ -444,6 +462,40 @@ mod tests {
             "{}",
             e.message
         );
+    }
+
+    #[test]
+    fn unregistered_fields_are_bounded_too() {
+        // each of these made an FMU return NaN outputs with fmi2OK (issue 16, item 2)
+        for (text, field, line) in [
+            (
+                "[sv1]\nrated_pressure_drop = 0.0\n",
+                "sv1.rated_pressure_drop",
+                2,
+            ),
+            (
+                "[sv2]\nrated_pressure_drop = -1e5\n",
+                "sv2.rated_pressure_drop",
+                2,
+            ),
+            (
+                "[fluid]\nreference_temperature = 0\n",
+                "fluid.reference_temperature",
+                2,
+            ),
+            ("[fluid]\n\nwalther_a3 = 1e6\n", "fluid.walther_a3", 3),
+            ("[fluid]\nwalther_a3 = 20.0\n", "fluid.walther_a3", 2),
+            ("[friction]\ndecay_rate = nan\n", "friction.decay_rate", 2),
+            (
+                "[sensors]\nsample_period = 0.0\n",
+                "sensors.sample_period",
+                2,
+            ),
+        ] {
+            let e = Params::from_toml_named(text, "p.toml").unwrap_err();
+            assert_eq!(e.field.as_deref(), Some(field), "{text}: {e}");
+            assert_eq!(e.line, Some(line), "{text}: {e}");
+        }
     }
 
     #[test]

@@ -404,8 +404,18 @@ impl Model for ActuatorFmu {
         if !s.x.is_empty() && s.x.len() != 4 {
             return Err("an actuator state has 4 values".into());
         }
+        // y, v, P1, P2: finite, absolute pressures not negative (issue 16, item 7)
+        if s.x.iter().any(|v| !v.is_finite()) || s.x.iter().skip(2).any(|p| *p < 0.0) {
+            return Err(
+                "the state holds a non-finite value or a negative absolute pressure".into(),
+            );
+        }
         self.s = s;
         self.act = None;
         self.refresh()
+    }
+
+    fn relative_tolerance(&mut self) -> Option<&mut f64> {
+        Some(&mut self.params_mut().solver.rtol)
     }
 }

@@ -242,4 +242,8 @@ impl Model for BenchFmu {
         }
         self.refresh()
     }
+
+    fn relative_tolerance(&mut self) -> Option<&mut f64> {
+        Some(&mut self.params_mut().solver.rtol)
+    }
 }

@@ -147,4 +147,8 @@ impl Model for ClosedLoopFmu {
         self.plant.restore(s.plant)?;
         self.controller.restore(s.controller)
     }
+
+    fn relative_tolerance(&mut self) -> Option<&mut f64> {
+        self.plant.relative_tolerance()
+    }
 }

@@ -18,11 +18,23 @@ use hbmodel::{Outputs, Params};
 use modeldesc::{DefaultExperiment, EnumItem, EnumerationType};
 use serde::{Deserialize, Serialize};
 
-use super::load_params;
+use super::{load_params, PRESSURE_INPUT};
 use crate::slave::{
     boolean_parameter, enum_parameter, real_input, real_output, real_parameter, Model, ModelInfo,
     VarDef,
 };
+
+/// Bounds of the measured position (m): the longest stroke the parameters allow is 1 m,
+/// so +-1 m holds any reading of a real LVDT; beyond, the input is a unit or wiring
+/// error (y = 1e200 made the laws' commands NaN, issue 16).
+const MEASURED_POSITION: (Option<f64>, Option<f64>) = (Some(-1.0), Some(1.0));
+
+/// Bounds of the reference's derivatives: the thesis's moves peak at 0.2 m/s, 10 m/s2
+/// and 131 m/s3; these are 50, 1000 and 1e5 times that, far beyond any trajectory the
+/// 19 L/min valves can follow (0.67 m/s), yet keeping the laws' arithmetic finite.
+const REFERENCE_SPEED: f64 = 10.0;
+const REFERENCE_ACCELERATION: f64 = 1e4;
+const REFERENCE_JERK: f64 = 1.31e7;
 
 /// Name of the enumeration type of the control laws.
 const LAW_TYPE: &str = "HydroBench.ControlLaw";
@@ -158,7 +170,7 @@ impl Model for ControllerFmu {
                 "Measured piston position",
                 "m",
                 0.0,
-                (None, None),
+                MEASURED_POSITION,
                 |m: &Self| m.inputs[1],
                 |m, x| m.inputs[1] = x,
             ),
@@ -167,7 +179,7 @@ impl Model for ControllerFmu {
                 "Measured pressure in chamber 1",
                 "Pa",
                 1e7,
-                (None, None),
+                PRESSURE_INPUT,
                 |m: &Self| m.inputs[2],
                 |m, x| m.inputs[2] = x,
             ),
@@ -176,7 +188,7 @@ impl Model for ControllerFmu {
                 "Measured pressure in chamber 2",
                 "Pa",
                 1e7,
-                (None, None),
+                PRESSURE_INPUT,
                 |m: &Self| m.inputs[3],
                 |m, x| m.inputs[3] = x,
             ),
@@ -185,7 +197,7 @@ impl Model for ControllerFmu {
                 "Pressure reference: P0 of Y-lambda, P1d of P-Y",
                 "Pa",
                 80e5,
-                (None, None),
+                PRESSURE_INPUT,
                 |m: &Self| m.inputs[4],
                 |m, x| m.inputs[4] = x,
             ),
@@ -194,7 +206,7 @@ impl Model for ControllerFmu {
                 "Velocity of the position reference (used when reference_derivatives is true)",
                 "m/s",
                 0.0,
-                (None, None),
+                (Some(-REFERENCE_SPEED), Some(REFERENCE_SPEED)),
                 |m: &Self| m.inputs[5],
                 |m, x| m.inputs[5] = x,
             ),
@@ -203,7 +215,7 @@ impl Model for ControllerFmu {
                 "Acceleration of the position reference (used when reference_derivatives is true)",
                 "m/s2",
                 0.0,
-                (None, None),
+                (Some(-REFERENCE_ACCELERATION), Some(REFERENCE_ACCELERATION)),
                 |m: &Self| m.inputs[6],
                 |m, x| m.inputs[6] = x,
             ),
@@ -212,7 +224,7 @@ impl Model for ControllerFmu {
                 "Jerk of the position reference (used when reference_derivatives is true)",
                 "m/s3",
                 0.0,
-                (None, None),
+                (Some(-REFERENCE_JERK), Some(REFERENCE_JERK)),
                 |m: &Self| m.inputs[7],
                 |m, x| m.inputs[7] = x,
             ),

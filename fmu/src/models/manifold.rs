@@ -405,8 +405,30 @@ impl Model for ManifoldFmu {
     }
 
     fn restore(&mut self, s: Snapshot) -> Result<(), String> {
+        // a state from bytes must be one the manifold can be in (issue 16, item 7):
+        // the circuit's size, finite values, no negative absolute pressure
+        if !s.x.is_empty() {
+            s.params.validate().map_err(|e| e.to_string())?;
+            let c = Circuit::from_params(&s.params);
+            let nn = c.nodes.len();
+            if s.x.len() != nn + c.passages.len() {
+                return Err(format!(
+                    "a manifold state of this circuit has {} values",
+                    nn + c.passages.len()
+                ));
+            }
+            if s.x.iter().any(|v| !v.is_finite()) || s.x[..nn].iter().any(|p| *p < 0.0) {
+                return Err(
+                    "the state holds a non-finite value or a negative absolute pressure".into(),
+                );
+            }
+        }
         self.s = s;
         self.circuit = None;
         self.refresh()
+    }
+
+    fn relative_tolerance(&mut self) -> Option<&mut f64> {
+        Some(&mut self.params_mut().solver.rtol)
     }
 }

@@ -8,7 +8,7 @@ pub mod manifold;
 pub mod servovalve;
 
 use std::path::{Path, PathBuf};
-use std::sync::OnceLock;
+use std::sync::{Mutex, OnceLock};
 
 use hbmodel::effects::{Effect, PARAMS};
 use hbmodel::params::ValveModel;
@@ -29,30 +29,33 @@ pub struct FmuSpec {
     pub documentation: String,
 }
 
-/// Every FMU of the library.
+/// Every FMU of the library, built once (packaging and tests).
 pub fn specs() -> &'static [FmuSpec] {
     static ALL: OnceLock<Vec<FmuSpec>> = OnceLock::new();
-    ALL.get_or_init(|| {
-        fn one<M: Model>() -> FmuSpec {
-            let d = description::<M>();
-            let info = M::info();
-            FmuSpec {
-                id: info.model_identifier,
-                guid: d.guid(),
-                parameters: info.parameters.map(|p| p.to_toml()),
-                documentation: crate::docs::index_html(&d, info.equations),
-                description: d,
-            }
+    ALL.get_or_init(build_specs)
+}
+
+/// Every FMU of the library, freshly built.
+fn build_specs() -> Vec<FmuSpec> {
+    fn one<M: Model>() -> FmuSpec {
+        let d = description::<M>();
+        let info = M::info();
+        FmuSpec {
+            id: info.model_identifier,
+            guid: d.guid(),
+            parameters: info.parameters.map(|p| p.to_toml()),
+            documentation: crate::docs::index_html(&d, info.equations),
+            description: d,
         }
-        vec![
-            one::<servovalve::ServovalveFmu>(),
-            one::<manifold::ManifoldFmu>(),
-            one::<actuator::ActuatorFmu>(),
-            one::<bench::BenchFmu>(),
-            one::<controller::ControllerFmu>(),
-            one::<closed_loop::ClosedLoopFmu>(),
-        ]
-    })
+    }
+    vec![
+        one::<servovalve::ServovalveFmu>(),
+        one::<manifold::ManifoldFmu>(),
+        one::<actuator::ActuatorFmu>(),
+        one::<bench::BenchFmu>(),
+        one::<controller::ControllerFmu>(),
+        one::<closed_loop::ClosedLoopFmu>(),
+    ]
 }
 
 /// Create the instance of the model whose description has this GUID.
@@ -61,7 +64,7 @@ pub fn instantiate(
     log: Logger,
     resources: Option<PathBuf>,
 ) -> Result<Box<dyn Component>, (Logger, String)> {
-    let Some(FmuSpec { id, .. }) = specs().iter().find(|s| s.guid == guid) else {
+    let Some(id) = model_of_guid(guid) else {
         return Err((log, format!("no HydroBench model has GUID {guid}: the FMU's modelDescription.xml and binary differ in version")));
     };
     fn make<M: Model>(
@@ -70,7 +73,7 @@ pub fn instantiate(
     ) -> Result<Box<dyn Component>, (Logger, String)> {
         Instance::<M>::new(log, resources).map(|i| Box::new(i) as Box<dyn Component>)
     }
-    match *id {
+    match id {
         "servovalve" => make::<servovalve::ServovalveFmu>(log, resources),
         "manifold" => make::<manifold::ManifoldFmu>(log, resources),
         "actuator" => make::<actuator::ActuatorFmu>(log, resources),
@@ -80,13 +83,74 @@ pub fn instantiate(
     }
 }
 
-/// The directory behind an `fmuResourceLocation` URI (file:///..., file:/...).
+/// GUID to model identifier of every model, built on the first instantiation. Not
+/// [`specs`]: instantiation needs only the GUIDs, and this cache is one the library can
+/// free when it is unloaded (`forget_guids`), so reloading it leaks nothing.
+static GUIDS: Mutex<Vec<(String, &'static str)>> = Mutex::new(Vec::new());
+
+fn model_of_guid(guid: &str) -> Option<&'static str> {
+    let mut guids = GUIDS.lock().ok()?;
+    if guids.is_empty() {
+        *guids = build_specs().into_iter().map(|s| (s.guid, s.id)).collect();
+    }
+    guids.iter().find(|(g, _)| g == guid).map(|(_, id)| *id)
+}
+
+/// Free the GUID cache (the library is being unloaded).
+pub fn forget_guids() {
+    if let Ok(mut g) = GUIDS.lock() {
+        std::mem::take(&mut *g);
+    }
+}
+
+/// The resources directory an instance reads, from the host's `fmuResourceLocation`; when
+/// it cannot be used, the built-in thesis parameters apply and the host is warned, naming
+/// what was expected, since a parameter file the user shipped would otherwise be ignored
+/// without a word (issue 16, item 3).
+pub fn resources_or_warn(uri: Option<&str>, is_null: bool, log: &Logger) -> Option<PathBuf> {
+    const EXPECTED: &str = "expected a file:// URI of the unpacked FMU's resources directory, e.g. file:///tmp/fmu/resources";
+    const FALLBACK: &str =
+        "resources/parameters.toml is not read, the built-in thesis parameters apply";
+    let warn = |why: String| log.warn(&format!("fmi2Instantiate: {why}; {FALLBACK} ({EXPECTED})"));
+    let Some(uri) = uri else {
+        warn(if is_null {
+            "fmuResourceLocation is NULL".into()
+        } else {
+            "fmuResourceLocation is not UTF-8".into()
+        });
+        return None;
+    };
+    let Some(dir) = resource_dir(uri) else {
+        warn(format!(
+            "fmuResourceLocation {uri:?} is not a local file URI with valid escapes"
+        ));
+        return None;
+    };
+    if !dir.is_dir() {
+        // an FMU without resources (the controller's) leaves nothing to read: no warning
+        return None;
+    }
+    let nested = dir.join("resources").join(PARAMETER_FILE);
+    if !dir.join(PARAMETER_FILE).is_file() && nested.is_file() {
+        warn(format!(
+            "fmuResourceLocation {uri:?} names the FMU's root, not its resources directory, so {} is ignored",
+            nested.display()
+        ));
+    }
+    Some(dir)
+}
+
+/// The directory behind an `fmuResourceLocation` URI (file:///..., file:/...,
+/// file://localhost/...); None for a remote host, a relative path or a bad escape.
 pub fn resource_dir(uri: &str) -> Option<PathBuf> {
     let rest = uri
         .strip_prefix("file://")
         .or_else(|| uri.strip_prefix("file:"))?;
-    // file:///path and file://localhost/path both name /path
+    // file:///path and file://localhost/path both name /path; file://host/path is remote
     let rest = rest.strip_prefix("localhost").unwrap_or(rest);
+    if !rest.starts_with('/') {
+        return None;
+    }
     // percent-decoding: hosts escape spaces and non-ASCII characters
     let mut bytes = Vec::with_capacity(rest.len());
     let mut it = rest.bytes();

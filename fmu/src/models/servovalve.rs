@@ -302,4 +302,8 @@ impl Model for ServovalveFmu {
         }
         self.refresh()
     }
+
+    fn relative_tolerance(&mut self) -> Option<&mut f64> {
+        Some(&mut self.params_mut().solver.rtol)
+    }
 }

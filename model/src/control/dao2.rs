@@ -57,6 +57,23 @@ pub const ADAPTATION_RATES: [f64; 3] = [1.0, 1.0, 1.0];
 /// half a sample.
 pub const SUBSTEPS: usize = 20;
 
+/// Largest Euler step times the larger linear gain. The linear part of (5.60) has the
+/// characteristic polynomial s^2 + Kd0 s + Kd0 Kd1; explicit Euler keeps it stable for
+/// h < 2/Kd0 (real roots) and h < 1/Kd1 (complex roots), so h max(Kd0, Kd1) <= 0.5
+/// leaves a factor of two on both. The thesis gains need no more than [`SUBSTEPS`]; a
+/// Kd0 of 5e4 1/s at 1 kHz, inside the FMU's range, diverged to NaN with 20 (issue 16).
+const EULER_GAIN_STEP: f64 = 0.5;
+
+/// Sub-steps per sample: [`SUBSTEPS`], or more when the linear gains need them.
+fn stable_substeps(kd0: f64, kd1: f64, period: f64) -> usize {
+    let needed = (period * kd0.max(kd1) / EULER_GAIN_STEP).ceil();
+    if needed.is_finite() && needed > SUBSTEPS as f64 {
+        needed as usize
+    } else {
+        SUBSTEPS
+    }
+}
+
 fn sig_pow(x: f64, p: f64) -> f64 {
     x.abs().powf(p) * x.signum()
 }
@@ -100,7 +117,7 @@ impl Dao2 {
             kd0,
             kd1,
             period,
-            substeps: SUBSTEPS,
+            substeps: stable_substeps(kd0, kd1, period),
             gains0,
             gains: gains0,
             z0: 0.0,

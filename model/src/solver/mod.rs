@@ -56,6 +56,11 @@ pub struct Tolerances {
     pub fixed_step: f64,
 }
 
+/// Shortest carried step, as a fraction of the next interval, used to seed it: shorter
+/// ones are dropped for diffsol's own start-up estimate. 1e-9 keeps every step a stiff
+/// interval of the bench carries (~1e-7 s over 1e-3 s intervals) and drops a 1e-15 s one.
+const MIN_CARRIED_STEP: f64 = 1e-9;
+
 /// Relative perturbation of the finite-difference Jacobian: sqrt of machine epsilon.
 const FD_EPS: f64 = 1.490_116_119_384_765_6e-8;
 
@@ -166,9 +171,12 @@ where
         t: t0,
         message: e.to_string(),
     };
+    // a carried step far shorter than the interval is the trace of a tiny interval
+    // (fmi2DoStep by 1e-15 s), not of the dynamics: seeding with it makes diffsol give up
+    // ("step size is too small") on every later interval (issue 16, item 1)
     let seed = |h: &mut f64| {
         if let Some(s) = *step {
-            if s.is_finite() && s > 0.0 {
+            if s.is_finite() && s > 0.0 && s >= MIN_CARRIED_STEP * (t1 - t0) {
                 *h = s;
             }
         }
