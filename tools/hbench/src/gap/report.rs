@@ -8,7 +8,7 @@ use serde_json::json;
 
 use super::analysis::describe;
 use super::data::{Drive, Experiment, Measured};
-use super::effects::candidate;
+use super::effects::{candidate, Kind};
 use super::Outcome;
 use crate::plot::{stacked, time_traces, Line, Panel};
 
@@ -151,6 +151,7 @@ pub fn write(out: &Path, o: &Outcome, e: &Experiment, m: &Measured) -> Result<()
     let report = json!({
         "steps": o.steps,
         "initial_gap": o.initial_gap,
+        "record_gaps": o.record_gaps,
         "remaining_gap": o.remaining_gap,
         "noise_floor": 1.0,
         "noise_floor_gap": super::NOISE_FLOOR_GAP,
@@ -187,26 +188,44 @@ pub fn write(out: &Path, o: &Outcome, e: &Experiment, m: &Measured) -> Result<()
     for s in describe(&o.first) {
         let _ = writeln!(md, "- {s}");
     }
+    if o.record_gaps.len() > 1 {
+        md.push_str("\nRecords fitted jointly (the figures and the localisation are the first's):\n\n| record | gap before | gap after |\n|---|---|---|\n");
+        for (i, (a, b)) in o.record_gaps.iter().enumerate() {
+            let _ = writeln!(md, "| {} | {a:.2} | {b:.2} |", i + 1);
+        }
+    }
     for (i, step) in o.steps.iter().enumerate() {
-        let _ = writeln!(md, "\n## Step {}: add `{}`\n", i + 1, step.effect);
-        if let Some(c) = hbmodel::Effect::from_name(&step.effect).and_then(candidate) {
-            let _ = writeln!(md, "Signature of this effect: {}.\n", c.signature);
+        let what = match step.kind {
+            Kind::Add => format!("add `{}`", step.effect),
+            Kind::Recalibrate => format!("recalibrate `{}`", step.effect),
+        };
+        let _ = writeln!(md, "\n## Step {}: {what}\n", i + 1);
+        if step.kind == Kind::Add {
+            if let Some(c) = hbmodel::Effect::from_name(&step.effect).and_then(candidate) {
+                let _ = writeln!(md, "Signature of this effect: {}.\n", c.signature);
+            }
         }
         let _ = writeln!(
             md,
-            "Fitted: {}. Gap {:.2} -> {:.2}.\n\n| candidate | gap after fit | score (chi2 drop - k ln N) | parameters |\n|---|---|---|---|",
+            "Fitted: {}. Gap {:.2} -> {:.2}.\n\nEvidence: {}.\n\n\
+             Each hypothesis is fitted on half of the samples (alternate {:.0} ms blocks) and \
+             judged on the other half; its score is N_eff ln(chi2 before / chi2 after) - k ln N_eff \
+             on the judged half, N_eff = {:.0} the effective number of independent residuals \
+             (the residual's correlation counted).\n\n\
+             | hypothesis | judged gap | score | parameters |\n|---|---|---|---|",
             step.parameters.iter().map(|(k, v)| format!("{k} = {v}")).collect::<Vec<_>>().join(", "),
             step.gap_before,
-            step.gap_after
+            step.gap_after,
+            step.evidence.statement,
+            super::fit::HELD_OUT_BLOCK * 1e3,
+            step.evidence.effective_samples,
         );
-        let mut c = step.candidates.clone();
-        c.sort_by(|a, b| b.score.total_cmp(&a.score));
-        for s in c {
+        for s in &step.candidates {
             let _ = writeln!(
                 md,
-                "| {} | {:.2} | {:.0} | {} |",
-                s.effect,
-                s.gap,
+                "| {} | {:.2} | {:.1} | {} |",
+                s.label,
+                s.judged_gap,
                 s.score,
                 s.parameters
                     .iter()
