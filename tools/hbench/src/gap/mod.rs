@@ -9,6 +9,7 @@
 //! number (see `evidence`); the best one is accepted when it pays its price there and
 //! lowers the judged gap by more than MIN_IMPROVEMENT, then refitted on all the data.
 
+pub mod advice;
 pub mod analysis;
 pub mod blind;
 pub mod data;
@@ -18,6 +19,7 @@ pub mod evidence;
 pub mod fit;
 pub mod hide;
 mod report;
+pub mod resonance;
 
 use std::path::{Path, PathBuf};
 
@@ -54,6 +56,8 @@ pub struct Step {
     pub gap_after: f64,
     /// The evidence for this hypothesis against the next best.
     pub evidence: Evidence,
+    /// When the evidence is not decisive: the experiment that would tell the two apart.
+    pub advice: Option<advice::Advice>,
     /// Every hypothesis's judged gap and score.
     pub candidates: Vec<Scored>,
 }
@@ -86,6 +90,9 @@ pub struct Outcome {
     pub after: Traces,
     /// (initial gap, remaining gap) of each record.
     pub record_gaps: Vec<(f64, f64)>,
+    /// When the run stops with a hypothesis that did not pay its price here: the
+    /// experiment that would show whether it is there.
+    pub advice: Option<advice::Advice>,
     pub verdict: String,
 }
 
@@ -200,6 +207,7 @@ pub fn run_records(
     let mut loc = first.clone();
     let mut carried: Vec<Fitted> = Vec::new();
     let judged = target.mask(Part::Judge).sum();
+    let mut final_advice = None;
     let verdict = loop {
         if steps.len() == MAX_STEPS {
             break format!("stopped after {MAX_STEPS} steps with the gap at {gap:.2}");
@@ -244,6 +252,11 @@ pub fn run_records(
             .first()
             .filter(|(s, _)| s.score > 0.0 && s.judged_gap < (1.0 - MIN_IMPROVEMENT) * judged_gap);
         let Some((_, winner)) = winner else {
+            if let Some((s, f)) = scored.first() {
+                final_advice =
+                    advice::advise(["the model as it is", &s.label], &model, &f.params, &noise)
+                        .ok();
+            }
             break if gap <= NOISE_FLOOR_GAP {
                 format!("the model explains the data within their noise (gap {gap:.2}, noise floor 1); no hypothesis adds more than its complexity price on data it was not fitted on")
             } else {
@@ -272,7 +285,18 @@ pub fn run_records(
             .residuals
             .clone()
             .ok_or("the refitted model fails to simulate")?;
+        let step_advice = match scored.get(1) {
+            Some((s, f)) if !evidence.decisive => advice::advise(
+                [&scored[0].0.label, &s.label],
+                &winner.params,
+                &f.params,
+                &noise,
+            )
+            .ok(),
+            _ => None,
+        };
         steps.push(Step {
+            advice: step_advice,
             kind: winner.hypothesis.kind,
             effect: winner.hypothesis.name().into(),
             parameters: json_values(&full.values),
@@ -308,6 +332,7 @@ pub fn run_records(
         before,
         after,
         record_gaps,
+        advice: final_advice,
         verdict,
     })
 }
