@@ -15,7 +15,7 @@ use hbmodel::control::sampled::{SampledController, StateSource};
 use hbmodel::control::scenario::law_name;
 use hbmodel::control::Measurement;
 use hbmodel::{Outputs, Params};
-use modeldesc::{DefaultExperiment, EnumItem, EnumerationType};
+use modeldesc::DefaultExperiment;
 use serde::{Deserialize, Serialize};
 
 use super::load_params;
@@ -24,10 +24,7 @@ use crate::slave::{
     VarDef,
 };
 
-/// Name of the enumeration type of the control laws.
-const LAW_TYPE: &str = "HydroBench.ControlLaw";
-
-/// Laws in the order of their enumeration values (1-based).
+/// Laws in the order of their `law` values (1-based).
 const LAWS: [(LawKind, &str, &str); 5] = [
     (
         LawKind::Proportional,
@@ -56,7 +53,7 @@ const LAWS: [(LawKind, &str, &str); 5] = [
     ),
 ];
 
-/// The enumeration value of a law in the FMUs (1-based, the order of `LAWS`).
+/// The `law` value of a law in the FMUs (1-based, the order of `LAWS`).
 pub fn law_code(k: LawKind) -> i32 {
     LAWS.iter()
         .position(|(l, _, _)| *l == k)
@@ -114,11 +111,6 @@ impl Model for ControllerFmu {
             model_identifier: "controller",
             description: "Position/pressure controllers of the bench (chapters 4-6), sampled at the communication step",
             default_experiment: DefaultExperiment { start_time: 0.0, stop_time: 0.1, tolerance: None, step_size: Some(1e-3) },
-            enumerations: vec![EnumerationType {
-                name: LAW_TYPE.into(),
-                description: "Control law".into(),
-                items: LAWS.iter().enumerate().map(|(i, (_, name, d))| EnumItem { name: (*name).into(), value: i as i32 + 1, description: (*d).into() }).collect(),
-            }],
             equations: &[
                 "(4.22) proportional; (5.16)-(5.35) Y-lambda; (5.36)-(5.58) P-Y",
                 "(6.6)-(6.9) model-free i-PI; (6.10)-(6.17) restricted model",
@@ -240,10 +232,8 @@ impl Model for ControllerFmu {
             enum_parameter(
                 "law",
                 "Control law",
-                LAW_TYPE,
+                &LAWS.map(|(_, name, meaning)| (name, meaning)),
                 1,
-                1,
-                LAWS.len() as i32,
                 |m: &Self| law_code(m.cp.law),
                 |m, k| m.cp.law = law_from(k),
             ),

@@ -40,7 +40,7 @@ pub const STEP_AMPLITUDE: f64 = 10e-3;
 const MOVES_END: f64 = 2.6;
 /// Steps of Fig. 4.8: -10 mm to +10 mm at 0.05 s and back at 0.35 s; each settles within
 /// 0.1 s at Kp = 1169 V/m (95 % times 0.03-0.06 s).
-const STEP_TIMES: [f64; 2] = [0.05, 0.35];
+pub const STEP_TIMES: [f64; 2] = [0.05, 0.35];
 const STEPS_END: f64 = 0.65;
 /// Sine runs: 4 periods (at least 0.1 s) of settling, then 10 periods judged.
 const SINE_SETTLE_PERIODS: f64 = 4.0;
@@ -76,6 +76,24 @@ pub enum Signal {
     },
     /// y_d = amplitude sin(2 pi f t), with its analytic derivatives (Figs. 4.9-4.14).
     Sine { amplitude: f64, frequency: f64 },
+    /// A logarithmic sweep, y_d = amplitude sin(phi(t)) with the frequency rising
+    /// geometrically from `f_start` to `f_end` over `duration` (s) and holding `f_end`
+    /// after: the frequency responses of Figs. 4.9-4.14 in one run instead of one sine
+    /// per frequency.
+    Sweep {
+        amplitude: f64,
+        f_start: f64,
+        f_end: f64,
+        duration: f64,
+    },
+    /// A constant-velocity ramp from `from` to `to` (m) starting at `start` and lasting
+    /// `duration` (s), holding its ends: the velocity-tracking test of a position loop.
+    Ramp {
+        start: f64,
+        from: f64,
+        to: f64,
+        duration: f64,
+    },
 }
 
 impl Signal {
@@ -94,6 +112,53 @@ impl Signal {
                 let w = 2.0 * PI * frequency;
                 let (s, c) = (w * t).sin_cos();
                 [a * s, a * w * c, -a * w * w * s, -a * w * w * w * c]
+            }
+            Signal::Sweep {
+                amplitude: a,
+                f_start,
+                f_end,
+                duration,
+            } => {
+                // phi' = w = 2 pi f0 k^(t/T), k = f1/f0, so w' = r w and w'' = r^2 w with
+                // r = ln(k)/T while sweeping; after it, a sine at f1 (r = 0)
+                let r = (f_end / f_start).ln() / duration;
+                let w0 = 2.0 * PI * f_start;
+                let swept = |t: f64| {
+                    if r == 0.0 {
+                        w0 * t
+                    } else {
+                        w0 * ((r * t).exp() - 1.0) / r
+                    }
+                };
+                let (phi, w, r) = if t < *duration {
+                    (swept(t), w0 * (r * t).exp(), r)
+                } else {
+                    let w1 = 2.0 * PI * f_end;
+                    (swept(*duration) + w1 * (t - duration), w1, 0.0)
+                };
+                let (dw, d2w) = (r * w, r * r * w);
+                let (s, c) = phi.sin_cos();
+                [
+                    a * s,
+                    a * c * w,
+                    a * (c * dw - s * w * w),
+                    a * (c * d2w - 3.0 * s * w * dw - c * w * w * w),
+                ]
+            }
+            Signal::Ramp {
+                start,
+                from,
+                to,
+                duration,
+            } => {
+                let tau = (t - start) / duration;
+                if tau <= 0.0 {
+                    [*from, 0.0, 0.0, 0.0]
+                } else if tau >= 1.0 {
+                    [*to, 0.0, 0.0, 0.0]
+                } else {
+                    [from + (to - from) * tau, (to - from) / duration, 0.0, 0.0]
+                }
             }
         }
     }
