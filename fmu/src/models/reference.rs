@@ -59,6 +59,7 @@ const RAMP_DURATION: f64 = 1.0;
 /// Upper bound of the times and durations (s): an hour, far beyond any bench run.
 const LONG: f64 = 3600.0;
 /// Upper bound of the frequencies (Hz): beyond the servovalves' bandwidth by far.
+/// (Frequencies are declared in 1/s, the SI unit of the model descriptions: cycles per second.)
 const HIGH_FREQUENCY: f64 = 1e4;
 
 /// A real parameter of the signals: name, description, unit, default, min, max.
@@ -76,10 +77,10 @@ const PARAMETERS: [Spec; 20] = [
     ("steps.up", "Time of the step to steps.high (steps)", "s", STEP_TIMES[0], 0.0, LONG),
     ("steps.down", "Time of the step back to steps.low (steps)", "s", STEP_TIMES[1], 0.0, LONG),
     ("sine.amplitude", "Amplitude of the sine about mid stroke (sine)", "m", SINE_AMPLITUDE, 0.0, POSITION),
-    ("sine.frequency", "Frequency of the sine (sine)", "Hz", SINE_FREQUENCY, TINY, HIGH_FREQUENCY),
+    ("sine.frequency", "Frequency of the sine (sine)", "1/s", SINE_FREQUENCY, TINY, HIGH_FREQUENCY),
     ("sweep.amplitude", "Amplitude of the sweep about mid stroke (sweep)", "m", SINE_AMPLITUDE, 0.0, POSITION),
-    ("sweep.f_start", "Frequency at t = 0 (sweep)", "Hz", SWEEP_F_START, TINY, HIGH_FREQUENCY),
-    ("sweep.f_end", "Frequency at sweep.duration, held after (sweep)", "Hz", SWEEP_F_END, TINY, HIGH_FREQUENCY),
+    ("sweep.f_start", "Frequency at t = 0 (sweep)", "1/s", SWEEP_F_START, TINY, HIGH_FREQUENCY),
+    ("sweep.f_end", "Frequency at sweep.duration, held after (sweep)", "1/s", SWEEP_F_END, TINY, HIGH_FREQUENCY),
     ("sweep.duration", "Duration of the sweep (sweep)", "s", SWEEP_DURATION, TINY, LONG),
     ("ramp.from", "Position before the ramp (ramp)", "m", THESIS_LOW, -POSITION, POSITION),
     ("ramp.to", "Position after the ramp (ramp)", "m", THESIS_HIGH, -POSITION, POSITION),
