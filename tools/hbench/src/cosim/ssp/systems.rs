@@ -120,6 +120,35 @@ fn component_params(p: &Params) -> [Params; 4] {
     [p.clone(), sv2, p.clone(), act]
 }
 
+/// Keep on each component the connectors a connection uses. An SSD may expose a subset
+/// of an FMU's variables; an engine that sets every declared input each step (fmpy.ssp,
+/// from a value it initialises to 0) then leaves the others, such as the valves' supply
+/// pressure P_P, at their FMU start values.
+fn declare_connected(sys: &mut System) {
+    let used = |name: &str, var: &str, start: bool| {
+        sys.connections.iter().any(|c| {
+            let e = if start { &c.start } else { &c.end };
+            e.element.as_deref() == Some(name) && e.connector == var
+        })
+    };
+    let kept: Vec<(Vec<String>, Vec<String>)> = sys
+        .components
+        .iter()
+        .map(|c| {
+            let keep = |list: &[String], start| {
+                list.iter()
+                    .filter(|v| used(&c.name, v, start))
+                    .cloned()
+                    .collect()
+            };
+            (keep(&c.inputs, false), keep(&c.outputs, true))
+        })
+        .collect();
+    for (c, (inputs, outputs)) in sys.components.iter_mut().zip(kept) {
+        (c.inputs, c.outputs) = (inputs, outputs);
+    }
+}
+
 fn end(element: &str, connector: &str) -> End {
     End {
         element: Some(element.into()),
@@ -139,6 +168,13 @@ fn wire(a: &str, out: &str, b: &str, inp: &str) -> Connection {
 /// Actuator.F_ext) hold their start values (valves at null, no load) unless the master
 /// sets them.
 pub fn bench_system(mode: Mode) -> Result<System, String> {
+    let mut sys = components_of_bench(mode)?;
+    declare_connected(&mut sys);
+    Ok(sys)
+}
+
+/// [`bench_system`] with every connector of its components declared.
+fn components_of_bench(mode: Mode) -> Result<System, String> {
     let p = Params::thesis_bench(mode);
     let [sv1p, sv2p, mp, ap] = component_params(&p);
     // The listing is the Gauss-Seidel order. The actuator goes first: its carried model
@@ -213,7 +249,7 @@ pub fn move_reference() -> Vec<(String, Value)> {
 /// period whatever the engine's step (`self_sampled`). Its built-in law is the thesis's
 /// proportional one (Kp = 1169 V/m).
 pub fn closed_loop_system(mode: Mode) -> Result<System, String> {
-    let mut sys = bench_system(mode)?;
+    let mut sys = components_of_bench(mode)?;
     sys.name = format!("HydroBenchClosedLoopMode{}", mode.number());
     let controller = instance::<controller::ControllerFmu>(
         CONTROLLER,
@@ -246,6 +282,7 @@ pub fn closed_loop_system(mode: Mode) -> Result<System, String> {
     }
     sys.connections
         .extend(wires.iter().map(|(a, b, c, d)| wire(a, b, c, d)));
+    declare_connected(&mut sys);
     Ok(sys)
 }
 
