@@ -7,13 +7,15 @@ proportional control u1 = -u2 = Kp (y_ref - y) (mode 1: u2 = 0), computed here o
 where reference.fmu feeds it the move the package binds; sampled at 1 ms while the plant
 steps at --step): the same algorithm as `hbench cosim` (tools/hbench/src/cosim/).
 
+    python tools/fmpy/cosim.py --ssp target/fmu/bench.ssp --controller [--mode 3]
     python tools/fmpy/cosim.py --ssp target/fmu/bench.ssp --reference out/cosim/reference_move.csv
                                [--mode 3] [--step 1e-4] [--order gauss-seidel] [--out trace.csv]
                                [--replace sv2=my_valve.fmu] [--controller]
 
-The reference y_ref(t) at the control instants comes from `hbench cosim`
-(reference_<experiment>.csv), which computes the 7th-order move in Rust; its first
-value is the initial piston position. Writes time, y_ref, y, P1, P2 (SI) at the control
+Without --controller, the reference y_ref(t) at the control instants comes from
+`hbench cosim` (reference_<experiment>.csv), which computes the 7th-order move in Rust; its
+first value is the initial piston position. With --controller it is optional: the
+package's reference.fmu gives the move, up to the SSD's stop time. Writes time, y_ref, y, P1, P2 (SI) at the control
 instants. The SSDs connect components only; the master drives and reads
 `Element.variable` (SV1.u, Actuator.y, ...).
 
@@ -40,6 +42,7 @@ CONTROL_PERIOD = 1e-3  # s, the thesis bench's sampling period
 CONTROLLER = "Controller"  # the controller.fmu instance of the closed-loop variants
 # where the loop is closed (tools/hbench/src/cosim/ssp/systems.rs)
 U1, U2, Y, P1, P2 = "SV1.u", "SV2.u", "Actuator.y", "Actuator.P1", "Actuator.P2"
+REFERENCE_Y = "Reference.y_ref"
 KP = 1169.0  # V/m
 U_MAX = 10.0  # V
 
@@ -141,7 +144,7 @@ class Master:
             for n, v in params.items():
                 c.set_parameter(n, v)
             for n, v in (("mode", mode), ("y0", y0)):
-                if c.has(n):
+                if c.has(n) and v is not None:
                     c.set_parameter(n, v)
             self.comps.append(c)
         index = {c.name: k for k, c in enumerate(self.comps)}
@@ -210,7 +213,8 @@ def read_reference(path: Path) -> list[tuple[float, float]]:
         return [(float(r["time"]), float(r["y_ref"])) for r in csv.DictReader(f)]
 
 
-def simulate(ssp: Path, reference: list[tuple[float, float]], mode: int = 3, step: float = 1e-4,
+def simulate(ssp: Path, reference: list[tuple[float, float]] | None, mode: int = 3,
+             step: float = 1e-4,
              order: str = "gauss-seidel", replace: dict[str, str] | None = None,
              controller: bool = False):
     """Rows (t, y_ref, y, P1, P2) at the control instants. `controller`: the package's
@@ -224,10 +228,20 @@ def simulate(ssp: Path, reference: list[tuple[float, float]], mode: int = 3, ste
     if controller:
         ssd = {1: "ClosedLoopMode1.ssd", 2: "ClosedLoopMode2.ssd", 3: "ClosedLoop.ssd"}[mode]
     with tempfile.TemporaryDirectory() as tmp:
+        if reference is None:  # the package's own experiment: instants to its stop time
+            if not controller:
+                raise ValueError("without --controller a reference is needed")
+            with zipfile.ZipFile(ssp) as z:
+                root = ElementTree.fromstring(z.read(ssd))
+            stop = float(root.find(f"{SSD}DefaultExperiment").get("stopTime"))
+            reference = [(k * CONTROL_PERIOD, None)
+                         for k in range(round(stop / CONTROL_PERIOD) + 1)]
         m = Master(ssp, tmp, mode, reference[0][1], replace or {}, ssd)
         try:
             for k, (t, y_ref) in enumerate(reference):
                 y, p1, p2 = m.output(Y), m.output(P1), m.output(P2)
+                if controller:  # what the loop follows: reference.fmu's output
+                    y_ref = m.output(REFERENCE_Y)
                 rows.append((t, y_ref, y, p1, p2))
                 if k == len(reference) - 1:
                     break
@@ -246,7 +260,8 @@ def simulate(ssp: Path, reference: list[tuple[float, float]], mode: int = 3, ste
 def main():
     ap = argparse.ArgumentParser(description=__doc__.split("\n\n")[0])
     ap.add_argument("--ssp", default="target/fmu/bench.ssp")
-    ap.add_argument("--reference", required=True, help="reference_<experiment>.csv of hbench cosim")
+    ap.add_argument("--reference", help="reference_<experiment>.csv of hbench cosim (optional "
+                    "with --controller: the package's move)")
     ap.add_argument("--mode", type=int, default=3, choices=(1, 2, 3))
     ap.add_argument("--step", type=float, default=1e-4, help="communication step (s)")
     ap.add_argument("--order", default="gauss-seidel", choices=("gauss-seidel", "jacobi"))
@@ -257,7 +272,8 @@ def main():
     ap.add_argument("--out", default="out/cosim/fmpy_trace.csv")
     a = ap.parse_args()
     replace = dict(r.split("=", 1) for r in a.replace)
-    rows = simulate(Path(a.ssp), read_reference(Path(a.reference)), a.mode, a.step, a.order,
+    reference = read_reference(Path(a.reference)) if a.reference else None
+    rows = simulate(Path(a.ssp), reference, a.mode, a.step, a.order,
                     replace, a.controller)
     Path(a.out).parent.mkdir(parents=True, exist_ok=True)
     with open(a.out, "w", newline="") as f:
