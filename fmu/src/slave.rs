@@ -202,23 +202,33 @@ pub fn integer_parameter<M: 'static>(
     )
 }
 
-/// A fixed enumeration parameter of a declared type.
-#[allow(clippy::too_many_arguments)]
+/// A selectable option: an Integer parameter whose values 1..=n stand for `options`
+/// (name, meaning), listed in its description as "k = name (meaning)". Not an FMI
+/// Enumeration: DNV's libcosim ignores Enumeration variables, while fmpy, OMSimulator and
+/// libcosim all set an Integer (docs/engines.md). The names stay machine-readable in the
+/// description for tools that take them (tools/sweep).
 pub fn enum_parameter<M: 'static>(
     name: &str,
     description: &str,
-    declared_type: &str,
+    options: &[(&str, &str)],
     start: i32,
-    min: i32,
-    max: i32,
     get: fn(&M) -> i32,
     set: fn(&mut M, i32),
 ) -> VarDef<M> {
-    let mut v = integer_parameter(name, description, start, min, max, get, set);
-    v.decl = ScalarVariable::enumeration_parameter(name, 0, description, declared_type, start)
-        .with_integer_range(min, max)
-        .with_initial(Initial::Exact);
-    v
+    let listing: Vec<String> = options
+        .iter()
+        .enumerate()
+        .map(|(i, (n, meaning))| format!("{} = {n} ({meaning})", i + 1))
+        .collect();
+    integer_parameter(
+        name,
+        &format!("{description}: {}", listing.join("; ")),
+        start,
+        1,
+        options.len() as i32,
+        get,
+        set,
+    )
 }
 
 /// A fixed Boolean parameter.
@@ -264,7 +274,6 @@ pub struct ModelInfo {
     pub model_identifier: &'static str,
     pub description: &'static str,
     pub default_experiment: DefaultExperiment,
-    pub enumerations: Vec<modeldesc::EnumerationType>,
     /// The thesis equations the model implements, one line each, for the documentation.
     pub equations: &'static [&'static str],
     /// The built-in parameter tree, shipped as resources/parameters.toml.
@@ -328,7 +337,7 @@ pub fn description<M: Model>() -> modeldesc::ModelDescription {
             .map(|(n, d)| (n.to_string(), d.to_string()))
             .collect(),
         default_experiment: Some(info.default_experiment),
-        enumerations: info.enumerations,
+        enumerations: vec![],
         variables,
         output_dependencies,
     }

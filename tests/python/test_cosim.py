@@ -121,7 +121,7 @@ def test_ssp_package_validates_against_the_ssp_1_0_schemas(ssp):
         # inline parameter values are `xs:any lax` in the SSD schema: check them as
         # documents of their own schema
         sets = ssd.findall(".//{http://ssp-standard.org/SSP1/SystemStructureParameterValues}ParameterSet")
-        assert {s.get("name") for s in sets} >= {"sv1", "manifold", "actuator"}
+        assert {s.get("name") for s in sets} >= {"SV1", "Manifold", "Actuator"}
         for s in sets:
             ssv_schema.assertValid(etree.fromstring(etree.tostring(s)))
         for mode in (1, 2, 3):
@@ -131,7 +131,8 @@ def test_ssp_package_validates_against_the_ssp_1_0_schemas(ssp):
             assert c.get("source") in names, c.get("source")
         # the closed-loop variants (SSP 1.0 section 3: further root SSDs, unique names)
         variants = [n for n in names if n.endswith(".ssd") and "/" not in n]
-        assert set(variants) == {"SystemStructure.ssd", "ClosedLoop.ssd", "ClosedLoopMode1.ssd"}
+        assert set(variants) == {"SystemStructure.ssd", "ClosedLoop.ssd", "ClosedLoopMode1.ssd",
+                                 "ClosedLoopMode2.ssd"}
         roots = [etree.fromstring(z.read(n)) for n in variants]
         assert len({r.get("name") for r in roots}) == len(roots)
         for name, root in zip(variants, roots):
@@ -140,6 +141,6 @@ def test_ssp_package_validates_against_the_ssp_1_0_schemas(ssp):
                 assert c.get("source") in names, (name, c.get("source"))
             if name.startswith("ClosedLoop"):
                 to_sv2 = [c for c in root.iter("{%s}Connection" % ns["ssd"])
-                          if c.get("endElement") == "sv2" and c.get("endConnector") == "u"]
+                          if c.get("endElement") == "SV2" and c.get("endConnector") == "u"]
                 # mode 1 holds SV2 at null: nothing drives its command
                 assert len(to_sv2) == (0 if name == "ClosedLoopMode1.ssd" else 1), name

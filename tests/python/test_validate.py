@@ -3,6 +3,7 @@ variables, types and units issue 4 fixes for each FMU."""
 from __future__ import annotations
 
 import os
+import re
 
 import fmpy
 import pytest
@@ -182,15 +183,16 @@ def test_manifold_mode_parameter(fmus):
     assert (int(mode.min), int(mode.max)) == (1, 3)
 
 
-def test_controller_law_is_an_enumeration_with_proportional(fmus):
-    md = fmus["controller"].md
+def test_controller_law_is_an_integer_option_with_proportional(fmus):
+    """Selectable options are Integer parameters (libcosim ignores FMI Enumerations) whose
+    values are listed in the description as "k = name (meaning)"."""
     law = fmus["controller"].var["law"]
-    assert law.type == "Enumeration" and law.causality == "parameter"
-    declared = {t.name: t for t in md.typeDefinitions}
-    t = declared[law.declaredType.name]
-    items = {i.name: int(i.value) for i in t.items}
+    assert law.type == "Integer" and law.causality == "parameter"
+    items = dict((name, int(k)) for k, name in re.findall(r"(?:: |; )(\d+) = (\w+) \(", law.description))
     assert "proportional" in items
+    assert sorted(items.values()) == list(range(int(law.min), int(law.max) + 1))
     assert int(law.start) == items["proportional"]
+    assert not fmus["controller"].md.typeDefinitions
     kp = fmus["controller"].var["Kp"]
     assert kp.type == "Real" and float(kp.start) > 0
 

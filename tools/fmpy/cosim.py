@@ -4,17 +4,20 @@ them: two servovalve.fmu instances, manifold.fmu and actuator.fmu, stepped at a 
 communication step in Gauss-Seidel (default) or Jacobi order, under the thesis's 1 kHz
 proportional control u1 = -u2 = Kp (y_ref - y) (mode 1: u2 = 0), computed here or, with
 --controller, by controller.fmu inside the system (the package's ClosedLoop variants,
-sampled at 1 ms while the plant steps at --step): the same algorithm as `hbench cosim`
-(tools/hbench/src/cosim/).
+where reference.fmu feeds it the move the package binds; sampled at 1 ms while the plant
+steps at --step): the same algorithm as `hbench cosim` (tools/hbench/src/cosim/).
 
+    python tools/fmpy/cosim.py --ssp target/fmu/bench.ssp --controller [--mode 3]
     python tools/fmpy/cosim.py --ssp target/fmu/bench.ssp --reference out/cosim/reference_move.csv
                                [--mode 3] [--step 1e-4] [--order gauss-seidel] [--out trace.csv]
                                [--replace sv2=my_valve.fmu] [--controller]
 
-The reference y_ref(t) at the control instants comes from `hbench cosim`
-(reference_<experiment>.csv), which computes the 7th-order move in Rust; its first
-value is the initial piston position. Writes time, y_ref, y, P1, P2 (SI) at the control
-instants.
+Without --controller, the reference y_ref(t) at the control instants comes from
+`hbench cosim` (reference_<experiment>.csv), which computes the 7th-order move in Rust; its
+first value is the initial piston position. With --controller it is optional: the
+package's reference.fmu gives the move, up to the SSD's stop time. Writes time, y_ref, y, P1, P2 (SI) at the control
+instants. The SSDs connect components only; the master drives and reads
+`Element.variable` (SV1.u, Actuator.y, ...).
 
 Swapping a component: `--replace NAME=path.fmu` loads your FMU in place of the packaged one
 (it must have the same connector names), or edit USER_COMPONENTS below to put Python code
@@ -36,7 +39,10 @@ SSD = "{http://ssp-standard.org/SSP1/SystemStructureDescription}"
 SSV = "{http://ssp-standard.org/SSP1/SystemStructureParameterValues}"
 
 CONTROL_PERIOD = 1e-3  # s, the thesis bench's sampling period
-CONTROLLER = "controller"  # the controller.fmu instance of the closed-loop variants
+CONTROLLER = "Controller"  # the controller.fmu instance of the closed-loop variants
+# where the loop is closed (tools/hbench/src/cosim/ssp/systems.rs)
+U1, U2, Y, P1, P2 = "SV1.u", "SV2.u", "Actuator.y", "Actuator.P1", "Actuator.P2"
+REFERENCE_Y = "Reference.y_ref"
 KP = 1169.0  # V/m
 U_MAX = 10.0  # V
 
@@ -89,12 +95,12 @@ class Component:
 
 # --------------------------------------------------------------------------------------
 # >>> YOUR COMPONENT GOES HERE <<<
-# Map a component name of bench.ssp (sv1, sv2, manifold, actuator) to a factory
+# Map a component name of bench.ssp (SV1, SV2, Manifold, Actuator) to a factory
 # `f(name, fmu_path, tmp) -> object` with the methods of Component: has, set_parameter,
 # initialize, ready, set, get, step, free. The object receives the inputs its SSD
 # connections name (e.g. a servovalve: u, P_A, P_B; outputs Q_A, Q_B, dQ_A_dP_A,
 # dQ_B_dP_B) and must give the outputs the others read. Example: your own valve FMU,
-#     USER_COMPONENTS = {"sv2": lambda name, _path, tmp: Component(name, "my_valve.fmu", tmp)}
+#     USER_COMPONENTS = {"SV2": lambda name, _path, tmp: Component(name, "my_valve.fmu", tmp)}
 # or a Python class of yours. Empty: every component is the packaged FMU.
 USER_COMPONENTS: dict = {}
 # --------------------------------------------------------------------------------------
@@ -138,22 +144,17 @@ class Master:
             for n, v in params.items():
                 c.set_parameter(n, v)
             for n, v in (("mode", mode), ("y0", y0)):
-                if c.has(n):
+                if c.has(n) and v is not None:
                     c.set_parameter(n, v)
             self.comps.append(c)
         index = {c.name: k for k, c in enumerate(self.comps)}
+        self.index = index
         # links[k]: {source index: ([source outputs], [inputs of k])}
         self.links = [dict() for _ in self.comps]
-        self.inputs, self.outputs = {}, {}
         for a, out, b, inp in connections:
-            if a and b:
-                outs, ins = self.links[index[b]].setdefault(index[a], ([], []))
-                outs.append(out)
-                ins.append(inp)
-            elif b:
-                self.inputs.setdefault(out, []).append((index[b], inp))
-            else:
-                self.outputs[inp] = (index[a], out)
+            outs, ins = self.links[index[b]].setdefault(index[a], ([], []))
+            outs.append(out)
+            ins.append(inp)
         for c in self.comps:
             c.initialize()
         for _ in range(3):  # consistent initial inputs, as hbench does
@@ -171,12 +172,14 @@ class Master:
             self.comps[k].set(ins, self.comps[src].get(outs))
 
     def set_input(self, name: str, x: float):
-        for k, inp in self.inputs[name]:
-            self.comps[k].set([inp], [x])
+        """Set the input `Element.variable`."""
+        element, var = name.split(".", 1)
+        self.comps[self.index[element]].set([var], [x])
 
     def output(self, name: str) -> float:
-        k, out = self.outputs[name]
-        return self.comps[k].get([out])[0]
+        """The output `Element.variable`."""
+        element, var = name.split(".", 1)
+        return self.comps[self.index[element]].get([var])[0]
 
     def step(self, h: float, order: str):
         # a sampled component whose period begins now reads its inputs first (its
@@ -210,32 +213,43 @@ def read_reference(path: Path) -> list[tuple[float, float]]:
         return [(float(r["time"]), float(r["y_ref"])) for r in csv.DictReader(f)]
 
 
-def simulate(ssp: Path, reference: list[tuple[float, float]], mode: int = 3, step: float = 1e-4,
+def simulate(ssp: Path, reference: list[tuple[float, float]] | None, mode: int = 3,
+             step: float = 1e-4,
              order: str = "gauss-seidel", replace: dict[str, str] | None = None,
              controller: bool = False):
     """Rows (t, y_ref, y, P1, P2) at the control instants. `controller`: the package's
-    closed-loop variant, controller.fmu in the system, instead of the law computed here."""
+    closed-loop variant, controller.fmu in the system fed by reference.fmu with the move the
+    package binds (`reference` then only gives the sampling instants and y_ref's column),
+    instead of the law computed here."""
     sub = max(1, round(CONTROL_PERIOD / step))
     h = CONTROL_PERIOD / sub
     rows = []
     ssd = "SystemStructure.ssd"
     if controller:
-        ssd = "ClosedLoopMode1.ssd" if mode == 1 else "ClosedLoop.ssd"
+        ssd = {1: "ClosedLoopMode1.ssd", 2: "ClosedLoopMode2.ssd", 3: "ClosedLoop.ssd"}[mode]
     with tempfile.TemporaryDirectory() as tmp:
+        if reference is None:  # the package's own experiment: instants to its stop time
+            if not controller:
+                raise ValueError("without --controller a reference is needed")
+            with zipfile.ZipFile(ssp) as z:
+                root = ElementTree.fromstring(z.read(ssd))
+            stop = float(root.find(f"{SSD}DefaultExperiment").get("stopTime"))
+            reference = [(k * CONTROL_PERIOD, None)
+                         for k in range(round(stop / CONTROL_PERIOD) + 1)]
         m = Master(ssp, tmp, mode, reference[0][1], replace or {}, ssd)
         try:
             for k, (t, y_ref) in enumerate(reference):
-                y, p1, p2 = m.output("y"), m.output("P1"), m.output("P2")
+                y, p1, p2 = m.output(Y), m.output(P1), m.output(P2)
+                if controller:  # what the loop follows: reference.fmu's output
+                    y_ref = m.output(REFERENCE_Y)
                 rows.append((t, y_ref, y, p1, p2))
                 if k == len(reference) - 1:
                     break
-                if controller:
-                    m.set_input("y_ref", y_ref)  # controller.fmu samples y itself
-                else:
+                if not controller:
                     u = min(U_MAX, max(-U_MAX, KP * (y_ref - y)))
-                    m.set_input("u1", u)
+                    m.set_input(U1, u)
                     # mode 1 drives the actuator with SV1 alone; SV2 stays at null
-                    m.set_input("u2", 0.0 if mode == 1 else -u)
+                    m.set_input(U2, 0.0 if mode == 1 else -u)
                 for _ in range(sub):
                     m.step(h, order)
         finally:
@@ -246,7 +260,8 @@ def simulate(ssp: Path, reference: list[tuple[float, float]], mode: int = 3, ste
 def main():
     ap = argparse.ArgumentParser(description=__doc__.split("\n\n")[0])
     ap.add_argument("--ssp", default="target/fmu/bench.ssp")
-    ap.add_argument("--reference", required=True, help="reference_<experiment>.csv of hbench cosim")
+    ap.add_argument("--reference", help="reference_<experiment>.csv of hbench cosim (optional "
+                    "with --controller: the package's move)")
     ap.add_argument("--mode", type=int, default=3, choices=(1, 2, 3))
     ap.add_argument("--step", type=float, default=1e-4, help="communication step (s)")
     ap.add_argument("--order", default="gauss-seidel", choices=("gauss-seidel", "jacobi"))
@@ -257,7 +272,8 @@ def main():
     ap.add_argument("--out", default="out/cosim/fmpy_trace.csv")
     a = ap.parse_args()
     replace = dict(r.split("=", 1) for r in a.replace)
-    rows = simulate(Path(a.ssp), read_reference(Path(a.reference)), a.mode, a.step, a.order,
+    reference = read_reference(Path(a.reference)) if a.reference else None
+    rows = simulate(Path(a.ssp), reference, a.mode, a.step, a.order,
                     replace, a.controller)
     Path(a.out).parent.mkdir(parents=True, exist_ok=True)
     with open(a.out, "w", newline="") as f:

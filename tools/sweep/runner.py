@@ -14,6 +14,7 @@ import json
 import logging
 import math
 import os
+import re
 import sys
 import tempfile
 import time
@@ -55,6 +56,15 @@ class Plan:
     factor_names: list[str] = field(default_factory=list)
 
 
+def option_values(var: Any) -> dict[str, int]:
+    """The named values of a selectable option: an Integer parameter whose description
+    lists them as "k = name (meaning)" (fmu/src/slave.rs, enum_parameter), or an FMI
+    Enumeration of an FMU of another origin."""
+    if var.type == "Enumeration":
+        return {item.name: int(item.value) for item in var.declaredType.items}
+    return {name: int(k) for k, name in re.findall(r"(?:: |; )(\d+) = (\w+) \(", var.description or "")}
+
+
 def _convert(study: Study, var: Any, table: tuple, value: Any, drawn: bool = False) -> Any:
     """A study value as the FMU takes it (enumeration names to their numbers), checked
     against the model description's type and bounds."""
@@ -65,8 +75,8 @@ def _convert(study: Study, var: Any, table: tuple, value: Any, drawn: bool = Fal
         if not isinstance(value, bool):
             raise loc.error(table, key, f"{var.name} is Boolean: give true or false, not {value!r}")
         return value
-    if var.type == "Enumeration" and isinstance(value, str):
-        items = {item.name: item.value for item in var.declaredType.items}
+    if var.type in ("Integer", "Enumeration") and isinstance(value, str):
+        items = option_values(var)
         if value not in items:
             raise loc.error(table, key, f"{value!r} is not one of {var.name}'s values: {', '.join(items)}")
         return int(items[value])

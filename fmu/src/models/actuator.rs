@@ -188,7 +188,6 @@ impl Model for ActuatorFmu {
             model_identifier: "actuator",
             description: "Double-rod actuator with hydrostatic bearings: chamber flows and external force in, pressures and motion out",
             default_experiment: DefaultExperiment { start_time: 0.0, stop_time: 0.1, tolerance: Some(1e-6), step_size: Some(1e-4) },
-            enumerations: vec![],
             equations: &[
                 "(4.1)-(4.2) chamber flow balances with leakage",
                 "(4.4) piston motion with gravity, friction (4.5)-(4.13) and end stops",

@@ -10,7 +10,7 @@ use modeldesc::DefaultExperiment;
 
 use super::{
     effect_switches, load_params, registry_parameters, valve_model_code, valve_model_from,
-    valve_model_type, HasParams, VALVE_MODEL_TYPE,
+    HasParams, VALVE_MODELS,
 };
 use super::{COMMAND_INPUT, FORCE_INPUT};
 use crate::slave::{
@@ -111,7 +111,6 @@ impl Model for BenchFmu {
                 tolerance: Some(1e-6),
                 step_size: Some(1e-3),
             },
-            enumerations: vec![valve_model_type()],
             equations: &[
                 "(II.2) servovalve land flows; second-order spool with rate limit (valve_dynamics)",
                 "(3.1)-(3.7) manifold passages C-R-I-C with abacus-based losses; (3.4) solenoid valves",
@@ -155,20 +154,16 @@ impl Model for BenchFmu {
         v.push(enum_parameter(
             "sv1.model",
             "Servovalve model of SV1",
-            VALVE_MODEL_TYPE,
+            &VALVE_MODELS,
             1,
-            1,
-            2,
             |m: &Self| valve_model_code(m.params.sv1.model),
             |m, k| m.params_mut().sv1.model = valve_model_from(k),
         ));
         v.push(enum_parameter(
             "sv2.model",
             "Servovalve model of SV2 (used when valve_asymmetry is on; SV1's otherwise)",
-            VALVE_MODEL_TYPE,
+            &VALVE_MODELS,
             1,
-            1,
-            2,
             |m: &Self| valve_model_code(m.params.sv2.model),
             |m, k| m.params_mut().sv2.model = valve_model_from(k),
         ));

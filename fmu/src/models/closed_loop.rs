@@ -51,21 +51,17 @@ impl Model for ClosedLoopFmu {
     type Snapshot = Snapshot;
 
     fn info() -> ModelInfo {
-        let (plant, controller) = (BenchFmu::info(), ControllerFmu::info());
-        let mut enumerations = plant.enumerations;
-        enumerations.extend(controller.enumerations);
         ModelInfo {
             model_name: "HydroBench.BenchClosedLoop",
             model_identifier: "bench_closed_loop",
             description: "The bench and its controller in one FMU: references in, motion, pressures and commands out",
             default_experiment: DefaultExperiment { start_time: 0.0, stop_time: 0.2, tolerance: Some(1e-6), step_size: Some(1e-3) },
-            enumerations,
             equations: &[
                 "the bench: (II.2), (3.1)-(3.7), (4.1)-(4.13), (A.7)-(A.16)",
                 "the controller: (4.22), (5.16)-(5.58), (5.59)-(5.63), (6.6)-(6.17)",
                 "the controller samples the plant at each communication point",
             ],
-            parameters: plant.parameters,
+            parameters: BenchFmu::info().parameters,
         }
     }
 

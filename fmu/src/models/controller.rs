@@ -15,7 +15,7 @@ use hbmodel::control::sampled::{SampledController, StateSource};
 use hbmodel::control::scenario::law_name;
 use hbmodel::control::Measurement;
 use hbmodel::{Outputs, Params};
-use modeldesc::{DefaultExperiment, EnumItem, EnumerationType};
+use modeldesc::DefaultExperiment;
 use serde::{Deserialize, Serialize};
 
 use super::{load_params, PRESSURE_INPUT};
@@ -36,10 +36,7 @@ const REFERENCE_SPEED: f64 = 10.0;
 const REFERENCE_ACCELERATION: f64 = 1e4;
 const REFERENCE_JERK: f64 = 1.31e7;
 
-/// Name of the enumeration type of the control laws.
-const LAW_TYPE: &str = "HydroBench.ControlLaw";
-
-/// Laws in the order of their enumeration values (1-based).
+/// Laws in the order of their `law` values (1-based).
 const LAWS: [(LawKind, &str, &str); 5] = [
     (
         LawKind::Proportional,
@@ -68,7 +65,7 @@ const LAWS: [(LawKind, &str, &str); 5] = [
     ),
 ];
 
-/// The enumeration value of a law in the FMUs (1-based, the order of `LAWS`).
+/// The `law` value of a law in the FMUs (1-based, the order of `LAWS`).
 pub fn law_code(k: LawKind) -> i32 {
     LAWS.iter()
         .position(|(l, _, _)| *l == k)
@@ -80,6 +77,10 @@ fn law_from(code: i32) -> LawKind {
         .map_or(LawKind::Proportional, |l| l.0)
 }
 
+/// Fraction of the sampling period by which a communication point may miss a sample
+/// instant and still take it: the rounding of a time summed from decimal steps.
+const SAMPLE_SLACK: f64 = 1e-6;
+
 #[derive(Debug, Clone, Serialize, Deserialize)]
 pub struct ControllerFmu {
     cp: ControllerParams,
@@ -87,6 +88,11 @@ pub struct ControllerFmu {
     pub(crate) inputs: [f64; 8],
     /// Take the reference's derivatives from the inputs instead of a DAO2 on y_ref.
     derivatives_given: bool,
+    /// Sample at the law's own period (`cp.period`) and hold between samples, instead of
+    /// at every communication point.
+    self_sampled: bool,
+    /// With `self_sampled`: the first instant of the next sample (s).
+    next_sample: f64,
     /// The bench the laws' control model (II.1)-(II.2) is written for: the shipped
     /// parameter file, or the plant's own parameters inside bench_closed_loop.fmu. The
     /// payload stays unknown to the laws (chapter 7).
@@ -102,12 +108,15 @@ pub struct ControllerFmu {
 
 impl ControllerFmu {
     fn fresh(cp: ControllerParams, derivatives_given: bool, plant: Params) -> Self {
+        let self_sampled = false;
         ControllerFmu {
             reference: Dao2::new(cp.dao2[0], cp.dao2[1], cp.period),
             cp,
             // mid stroke, chambers near half supply, the thesis's 80 bar pressure reference
             inputs: [0.0, 0.0, 1e7, 1e7, 80e5, 0.0, 0.0, 0.0],
             derivatives_given,
+            self_sampled,
+            next_sample: 0.0,
             plant,
             out: [0.0; 2],
             t: 0.0,
@@ -126,11 +135,6 @@ impl Model for ControllerFmu {
             model_identifier: "controller",
             description: "Position/pressure controllers of the bench (chapters 4-6), sampled at the communication step",
             default_experiment: DefaultExperiment { start_time: 0.0, stop_time: 0.1, tolerance: None, step_size: Some(1e-3) },
-            enumerations: vec![EnumerationType {
-                name: LAW_TYPE.into(),
-                description: "Control law".into(),
-                items: LAWS.iter().enumerate().map(|(i, (_, name, d))| EnumItem { name: (*name).into(), value: i as i32 + 1, description: (*d).into() }).collect(),
-            }],
             equations: &[
                 "(4.22) proportional; (5.16)-(5.35) Y-lambda; (5.36)-(5.58) P-Y",
                 "(6.6)-(6.9) model-free i-PI; (6.10)-(6.17) restricted model",
@@ -252,10 +256,8 @@ impl Model for ControllerFmu {
             enum_parameter(
                 "law",
                 "Control law",
-                LAW_TYPE,
+                &LAWS.map(|(_, name, meaning)| (name, meaning)),
                 1,
-                1,
-                LAWS.len() as i32,
                 |m: &Self| law_code(m.cp.law),
                 |m, k| m.cp.law = law_from(k),
             ),
@@ -313,6 +315,16 @@ impl Model for ControllerFmu {
                 |m: &Self| m.cp.dao2[1],
                 |m: &mut Self, x| m.cp.dao2[1] = x,
             ),
+            boolean_parameter(
+                "self_sampled",
+                "true: the law samples at its own 1 ms period (the bench's 1 kHz acquisition) and \
+                 holds its commands in between, whatever the master's communication step (for \
+                 single-rate engines: OMSimulator, libcosim); false: it samples at every \
+                 communication point",
+                false,
+                |m: &Self| m.self_sampled,
+                |m: &mut Self, on| m.self_sampled = on,
+            ),
         ]
     }
 
@@ -322,19 +334,34 @@ impl Model for ControllerFmu {
     }
 
     fn initialize(&mut self, start_time: f64) -> Result<(), String> {
-        let inputs = self.inputs;
+        let (inputs, self_sampled) = (self.inputs, self.self_sampled);
         // parameters are final: build the law on the thesis bench's control model
         let mut cp = self.cp;
         cp.source = StateSource::Dao2;
         *self = Self::fresh(cp, self.derivatives_given, self.plant.clone());
         self.inputs = inputs;
         self.reference.reset(inputs[0]);
+        self.self_sampled = self_sampled;
         self.t = start_time;
+        self.next_sample = start_time;
         self.controller = Some(cp.controller(&self.plant));
         self.refresh()
     }
 
     fn refresh(&mut self) -> Result<(), String> {
+        let same_instant = self.sample.as_ref().is_some_and(|s| s.0 == self.t);
+        // between its own sample instants a self-sampled controller holds its commands
+        // (a communication point within SAMPLE_SLACK of an instant counts as on it)
+        if self.self_sampled
+            && !same_instant
+            && self.t < self.next_sample - SAMPLE_SLACK * self.cp.period
+        {
+            return Ok(());
+        }
+        if self.self_sampled && !same_instant {
+            let k = ((self.t - self.next_sample) / self.cp.period + SAMPLE_SLACK).floor();
+            self.next_sample += (k + 1.0) * self.cp.period;
+        }
         if let Some((t, used, ctrl, reference)) = &self.sample {
             if *t == self.t && *used == self.inputs {
                 return Ok(());

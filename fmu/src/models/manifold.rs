@@ -134,7 +134,6 @@ impl Model for ManifoldFmu {
             model_identifier: "manifold",
             description: "Three-mode manifold between the two servovalves and the actuator (C-R-I-C passages, chapter 3)",
             default_experiment: DefaultExperiment { start_time: 0.0, stop_time: 0.05, tolerance: Some(1e-6), step_size: Some(1e-4) },
-            enumerations: vec![],
             equations: &[
                 "(3.2) passage end volumes, (3.3) passage inertia",
                 "(3.5)-(3.7) abacus-based pressure drop, (3.4) solenoid valves, flow reducers",

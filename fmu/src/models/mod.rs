@@ -1,10 +1,11 @@
-//! The five HydroBench FMUs and how an instantiation finds its model.
+//! The HydroBench FMUs and how an instantiation finds its model.
 
 pub mod actuator;
 pub mod bench;
 pub mod closed_loop;
 pub mod controller;
 pub mod manifold;
+pub mod reference;
 pub mod servovalve;
 
 use std::path::{Path, PathBuf};
@@ -55,6 +56,7 @@ fn build_specs() -> Vec<FmuSpec> {
         one::<bench::BenchFmu>(),
         one::<controller::ControllerFmu>(),
         one::<closed_loop::ClosedLoopFmu>(),
+        one::<reference::ReferenceFmu>(),
     ]
 }
 
@@ -79,6 +81,7 @@ pub fn instantiate(
         "actuator" => make::<actuator::ActuatorFmu>(log, resources),
         "bench" => make::<bench::BenchFmu>(log, resources),
         "bench_closed_loop" => make::<closed_loop::ClosedLoopFmu>(log, resources),
+        "reference" => make::<reference::ReferenceFmu>(log, resources),
         _ => make::<controller::ControllerFmu>(log, resources),
     }
 }
@@ -187,29 +190,14 @@ pub const FORCE_INPUT: (Option<f64>, Option<f64>) = (Some(-1e5), Some(1e5));
 /// Bounds of servovalve commands (V): the D765's rated input.
 pub const COMMAND_INPUT: (Option<f64>, Option<f64>) = (Some(-10.0), Some(10.0));
 
-/// Name of the enumeration type that selects a servovalve model.
-pub const VALVE_MODEL_TYPE: &str = "HydroBench.ValveModel";
-
-/// The servovalve models a valve parameter can select, as an FMI enumeration.
-pub fn valve_model_type() -> modeldesc::EnumerationType {
-    let item = |name: &str, value, description: &str| modeldesc::EnumItem {
-        name: name.into(),
-        value,
-        description: description.into(),
-    };
-    modeldesc::EnumerationType {
-        name: VALVE_MODEL_TYPE.into(),
-        description: "Servovalve model".into(),
-        items: vec![
-            item(
-                "reduced",
-                1,
-                "Static flow law (II.2), optional second-order spool",
-            ),
-            item("two_stage", 2, "Physical two-stage model of chapter 2"),
-        ],
-    }
-}
+/// The servovalve models a valve parameter can select (name, meaning), values 1 and 2.
+pub const VALVE_MODELS: [(&str, &str); 2] = [
+    (
+        "reduced",
+        "static flow law (II.2), optional second-order spool",
+    ),
+    ("two_stage", "physical two-stage model of chapter 2"),
+];
 
 pub fn valve_model_code(m: ValveModel) -> i32 {
     match m {

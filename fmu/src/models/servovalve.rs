@@ -11,7 +11,7 @@ use serde::{Deserialize, Serialize};
 
 use super::{
     effect_switches, load_params, params_with, registry_parameters, valve_model_code,
-    valve_model_from, valve_model_type, HasParams, VALVE_MODEL_TYPE,
+    valve_model_from, HasParams, VALVE_MODELS,
 };
 use super::{COMMAND_INPUT, PRESSURE_INPUT};
 use crate::slave::{enum_parameter, real_input, real_output, Model, ModelInfo, RealGetter, VarDef};
@@ -84,7 +84,6 @@ impl Model for ServovalveFmu {
             model_identifier: "servovalve",
             description: "MOOG D765 servovalve: command and port pressures in, port flows and spool position out",
             default_experiment: DefaultExperiment { start_time: 0.0, stop_time: 0.05, tolerance: Some(1e-6), step_size: Some(1e-4) },
-            enumerations: vec![valve_model_type()],
             equations: &[
                 "(II.2) land flow Qn/un * u * sqrt(dp/(dPn/2)) on the four lands",
                 "null leakage of the lands, second-order spool with a rate limit",
@@ -154,10 +153,8 @@ impl Model for ServovalveFmu {
         v.push(enum_parameter(
             "model",
             "Servovalve model",
-            VALVE_MODEL_TYPE,
+            &VALVE_MODELS,
             1,
-            1,
-            2,
             |m: &Self| valve_model_code(m.params.sv1.model),
             |m, k| m.params_mut().sv1.model = valve_model_from(k),
         ));

@@ -12,6 +12,7 @@ pub mod law;
 pub mod model_free;
 pub mod sampled;
 pub mod scenario;
+pub mod signal;
 pub mod trajectory;
 
 use crate::bench::{Inputs, Outputs, Simulation};

@@ -4,8 +4,6 @@
 //! studies all run these, so a figure in the docs and a point of a study mean the same
 //! experiment.
 
-use std::f64::consts::PI;
-
 use serde::Serialize;
 
 use super::backstepping::{Gains, LAMBDA_THESIS, P_REF_THESIS};
@@ -13,6 +11,7 @@ use super::config::{ControllerParams, LawKind};
 use super::law::Reference;
 use super::model_free::{KP_HIGH, KP_LOW};
 use super::sampled::{StateSource, DAO2_GAINS};
+pub use super::signal::Signal;
 use super::trajectory::Trajectory;
 use super::{run_sampled, Sample, Timing};
 use crate::{Effect, Mode, Params, Simulation};
@@ -40,7 +39,7 @@ pub const STEP_AMPLITUDE: f64 = 10e-3;
 const MOVES_END: f64 = 2.6;
 /// Steps of Fig. 4.8: -10 mm to +10 mm at 0.05 s and back at 0.35 s; each settles within
 /// 0.1 s at Kp = 1169 V/m (95 % times 0.03-0.06 s).
-const STEP_TIMES: [f64; 2] = [0.05, 0.35];
+pub const STEP_TIMES: [f64; 2] = [0.05, 0.35];
 const STEPS_END: f64 = 0.65;
 /// Sine runs: 4 periods (at least 0.1 s) of settling, then 10 periods judged.
 const SINE_SETTLE_PERIODS: f64 = 4.0;
@@ -61,42 +60,6 @@ pub struct Window {
     pub kind: WindowKind,
     pub start: f64,
     pub end: f64,
-}
-
-/// The position reference a scenario follows.
-#[derive(Debug, Clone, PartialEq)]
-pub enum Signal {
-    /// 7th-order polynomial moves (section 5.5).
-    Moves(Trajectory),
-    /// Steps between two positions at the given times (section 4.4, Fig. 4.8).
-    Steps {
-        low: f64,
-        high: f64,
-        times: Vec<f64>,
-    },
-    /// y_d = amplitude sin(2 pi f t), with its analytic derivatives (Figs. 4.9-4.14).
-    Sine { amplitude: f64, frequency: f64 },
-}
-
-impl Signal {
-    /// y_d and its first three derivatives at t.
-    pub fn at(&self, t: f64) -> [f64; 4] {
-        match self {
-            Signal::Moves(tr) => tr.at(t),
-            Signal::Steps { low, high, times } => {
-                let n = times.iter().filter(|&&ts| t >= ts).count();
-                [if n % 2 == 1 { *high } else { *low }, 0.0, 0.0, 0.0]
-            }
-            Signal::Sine {
-                amplitude: a,
-                frequency,
-            } => {
-                let w = 2.0 * PI * frequency;
-                let (s, c) = (w * t).sin_cos();
-                [a * s, a * w * c, -a * w * w * s, -a * w * w * w * c]
-            }
-        }
-    }
 }
 
 /// One closed-loop experiment.

@@ -115,10 +115,6 @@ struct Links {
 pub struct Master {
     slaves: Vec<Slave>,
     links: Vec<Links>,
-    /// System input name -> (component, value reference)
-    inputs: HashMap<String, Vec<(usize, u32)>>,
-    /// System output name -> (component, value reference)
-    outputs: HashMap<String, (usize, u32)>,
     /// Per component: None, stepped at the communication step; Some(T), a sampled
     /// component (the controller) stepped at its own period T, a multiple of the step.
     periods: Vec<Option<f64>>,
@@ -184,13 +180,11 @@ impl Master {
                 .map_err(|e| fmi_err(&c.name, "fmi2EnterInitializationMode", e))?;
             slaves.push(s);
         }
-        let (links, inputs, outputs) = wire(sys, &slaves)?;
+        let links = wire(sys, &slaves)?;
         let mut m = Master {
             periods: vec![None; slaves.len()],
             slaves,
             links,
-            inputs,
-            outputs,
             t: 0.0,
         };
         // consistent initial inputs: the couplings pass through at most three components
@@ -237,24 +231,28 @@ impl Master {
         self.slaves.iter().any(|s| s.name == name)
     }
 
-    /// Set a system input (every component input it drives).
-    pub fn set_input(&mut self, name: &str, x: f64) -> Result<(), String> {
-        let targets = self
-            .inputs
-            .get(name)
-            .ok_or_else(|| format!("the system has no input {name}"))?
-            .clone();
-        for (k, vr) in targets {
-            self.slaves[k].set_reals(&[vr], &[x])?;
-        }
-        Ok(())
+    /// Component index and value reference of `Element.variable`.
+    fn locate(&self, name: &str) -> Result<(usize, u32), String> {
+        let (element, var) = name
+            .split_once('.')
+            .ok_or_else(|| format!("{name}: name a variable as Element.variable"))?;
+        let k = self
+            .slaves
+            .iter()
+            .position(|s| s.name == element)
+            .ok_or_else(|| format!("the system has no component {element}"))?;
+        Ok((k, self.slaves[k].var(var)?.0))
     }
 
+    /// Set the input `Element.variable` (one a connection does not drive).
+    pub fn set_input(&mut self, name: &str, x: f64) -> Result<(), String> {
+        let (k, vr) = self.locate(name)?;
+        self.slaves[k].set_reals(&[vr], &[x])
+    }
+
+    /// The output `Element.variable`.
     pub fn output(&mut self, name: &str) -> Result<f64, String> {
-        let (k, vr) = *self
-            .outputs
-            .get(name)
-            .ok_or_else(|| format!("the system has no output {name}"))?;
+        let (k, vr) = self.locate(name)?;
         let mut x = [0.0];
         self.slaves[k].get_reals(&[vr], &mut x)?;
         Ok(x[0])
@@ -316,14 +314,9 @@ impl Drop for Master {
     }
 }
 
-type Wiring = (
-    Vec<Links>,
-    HashMap<String, Vec<(usize, u32)>>,
-    HashMap<String, (usize, u32)>,
-);
-
-/// Resolve the SSD's connections into value references.
-fn wire(sys: &System, slaves: &[Slave]) -> Result<Wiring, String> {
+/// Resolve the SSD's connections into value references. Both ends must be components
+/// (as libcosim requires): a master drives and reads `Element.variable` directly.
+fn wire(sys: &System, slaves: &[Slave]) -> Result<Vec<Links>, String> {
     let index = |name: &str| {
         slaves
             .iter()
@@ -331,40 +324,24 @@ fn wire(sys: &System, slaves: &[Slave]) -> Result<Wiring, String> {
             .ok_or_else(|| format!("a connection names the unknown element {name}"))
     };
     let mut links: Vec<Links> = slaves.iter().map(|_| Links { from: vec![] }).collect();
-    let mut inputs: HashMap<String, Vec<(usize, u32)>> = HashMap::new();
-    let mut outputs = HashMap::new();
     for c in &sys.connections {
-        match (&c.start.element, &c.end.element) {
-            (Some(a), Some(b)) => {
-                let (ka, kb) = (index(a)?, index(b)?);
-                let (out, _) = slaves[ka].var(&c.start.connector)?;
-                let (inp, _) = slaves[kb].var(&c.end.connector)?;
-                let from = &mut links[kb].from;
-                match from.iter_mut().find(|(src, _, _)| *src == ka) {
-                    Some((_, o, i)) => {
-                        o.push(out);
-                        i.push(inp);
-                    }
-                    None => from.push((ka, vec![out], vec![inp])),
-                }
+        let (Some(a), Some(b)) = (&c.start.element, &c.end.element) else {
+            return Err(format!(
+                "the connection {} -> {} has a system-level end: connect components",
+                c.start.connector, c.end.connector
+            ));
+        };
+        let (ka, kb) = (index(a)?, index(b)?);
+        let (out, _) = slaves[ka].var(&c.start.connector)?;
+        let (inp, _) = slaves[kb].var(&c.end.connector)?;
+        let from = &mut links[kb].from;
+        match from.iter_mut().find(|(src, _, _)| *src == ka) {
+            Some((_, o, i)) => {
+                o.push(out);
+                i.push(inp);
             }
-            (None, Some(b)) => {
-                let kb = index(b)?;
-                let (inp, _) = slaves[kb].var(&c.end.connector)?;
-                inputs
-                    .entry(c.start.connector.clone())
-                    .or_default()
-                    .push((kb, inp));
-            }
-            (Some(a), None) => {
-                let ka = index(a)?;
-                let (out, _) = slaves[ka].var(&c.start.connector)?;
-                outputs.insert(c.end.connector.clone(), (ka, out));
-            }
-            (None, None) => {
-                return Err("a connection joins two system connectors".into());
-            }
+            None => from.push((ka, vec![out], vec![inp])),
         }
     }
-    Ok((links, inputs, outputs))
+    Ok(links)
 }

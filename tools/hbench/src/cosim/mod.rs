@@ -21,10 +21,8 @@ use hbmodel::params::BAR;
 use hbmodel::Mode;
 
 use master::{Master, Order};
-use ssp::{Component, Connection, End, Package, System};
-
-/// Name of the controller.fmu instance in the closed-loop variants of bench.ssp.
-const CONTROLLER: &str = "controller";
+use ssp::systems::{MOVE_START, MOVE_STOP};
+use ssp::{Component, Package, System, ACTUATOR, CONTROLLER, REFERENCE, SV1, SV2};
 /// Controller sampling period (s), the thesis bench's.
 pub const CONTROL_PERIOD: f64 = 1e-3;
 /// Proportional gain of the thesis step tests (V/m).
@@ -45,7 +43,6 @@ pub enum Experiment {
     Sine,
 }
 
-const MOVE_START: f64 = 0.02;
 const SINE_AMPLITUDE: f64 = 3.4e-3;
 const SINE_FREQUENCY: f64 = 50.0;
 
@@ -73,7 +70,7 @@ impl Experiment {
     pub fn stop_time(self) -> f64 {
         match self {
             // the move and 80 ms of settling
-            Experiment::Move => MOVE_START + THESIS_MOVE_DURATION + 0.08,
+            Experiment::Move => MOVE_STOP,
             // five periods
             Experiment::Sine => 0.1,
         }
@@ -101,7 +98,24 @@ impl Experiment {
 /// Samples at the control instants: t, y_ref, y, P1, P2.
 type Trace = Vec<[f64; 5]>;
 
-/// Close the loop around a system whose inputs are u1, u2 and outputs y, P1, P2.
+/// Where the loop is closed: the valve commands, the position and the chamber pressures,
+/// as `Element.variable`, in bench.fmu alone or in the system of components.
+fn io(m: &Master) -> [String; 5] {
+    let ends = if m.has(MONOLITHIC) {
+        ["u1", "u2", "y", "P1", "P2"].map(|v| (MONOLITHIC, v))
+    } else {
+        [
+            (SV1, "u"),
+            (SV2, "u"),
+            (ACTUATOR, "y"),
+            (ACTUATOR, "P1"),
+            (ACTUATOR, "P2"),
+        ]
+    };
+    ends.map(|(e, v)| format!("{e}.{v}"))
+}
+
+/// Close the loop around bench.fmu or a system of components (see [`io`]).
 fn closed_loop(
     m: &mut Master,
     exp: Experiment,
@@ -112,9 +126,10 @@ fn closed_loop(
     let sub = (CONTROL_PERIOD / h).round().max(1.0) as usize;
     let h = CONTROL_PERIOD / sub as f64;
     let mut trace = Vec::new();
+    let [u1_in, u2_in, y_out, p1_out, p2_out] = io(m);
     for (t, y_ref) in exp.reference() {
-        let y = m.output("y")?;
-        let (p1, p2) = (m.output("P1")?, m.output("P2")?);
+        let y = m.output(&y_out)?;
+        let (p1, p2) = (m.output(&p1_out)?, m.output(&p2_out)?);
         if ![y, p1, p2].iter().all(|x| x.is_finite()) || y.abs() > 0.2 {
             return Err(format!("diverged at t = {t:.4} s (y = {y:e} m)"));
         }
@@ -122,15 +137,13 @@ fn closed_loop(
         if t >= exp.stop_time() - 1e-9 {
             break;
         }
-        if m.has(CONTROLLER) {
-            // controller.fmu in the system samples y itself
-            m.set_input("y_ref", y_ref)?;
-        } else {
+        // with controller.fmu in the system, reference.fmu feeds it: nothing to set
+        if !m.has(CONTROLLER) {
             let u = (KP * (y_ref - y)).clamp(-U_MAX, U_MAX);
-            m.set_input("u1", u)?;
+            m.set_input(&u1_in, u)?;
             // mode 1 drives the actuator with SV1 alone; SV2 stays connected, at null
             let u2 = if mode == Mode::FourWaySingle { 0.0 } else { -u };
-            m.set_input("u2", u2)?;
+            m.set_input(&u2_in, u2)?;
         }
         for _ in 0..sub {
             m.step(h, order)
@@ -140,50 +153,25 @@ fn closed_loop(
     Ok(trace)
 }
 
-/// A package holding `bench.fmu` alone, wired like the system of components.
+/// Instance name of bench.fmu in the monolithic reference.
+const MONOLITHIC: &str = "bench";
+
+/// A package holding `bench.fmu` alone.
 fn monolithic(bench_fmu: &Path) -> Result<Package, String> {
     let bytes = std::fs::read(bench_fmu)
         .map_err(|e| format!("cannot read {}: {e}", bench_fmu.display()))?;
-    let io = |s: &str, c: &str, input: bool| {
-        let (sys, comp) = (
-            End {
-                element: None,
-                connector: s.into(),
-            },
-            End {
-                element: Some("bench".into()),
-                connector: c.into(),
-            },
-        );
-        if input {
-            Connection {
-                start: sys,
-                end: comp,
-            }
-        } else {
-            Connection {
-                start: comp,
-                end: sys,
-            }
-        }
-    };
-    let mut connections: Vec<Connection> = ["u1", "u2", "F_ext"]
-        .iter()
-        .map(|n| io(n, n, true))
-        .collect();
-    connections.extend(["y", "P1", "P2"].iter().map(|n| io(n, n, false)));
     let system = System {
-        name: "bench".into(),
+        name: MONOLITHIC.into(),
         inputs: vec![],
         outputs: vec![],
         components: vec![Component {
-            name: "bench".into(),
+            name: MONOLITHIC.into(),
             source: "bench.fmu".into(),
             inputs: vec![],
             outputs: vec![],
             parameters: vec![],
         }],
-        connections,
+        connections: vec![],
     };
     Ok(Package {
         system,
@@ -191,11 +179,22 @@ fn monolithic(bench_fmu: &Path) -> Result<Package, String> {
     })
 }
 
-fn overrides(exp: Experiment, mode: Mode) -> [(&'static str, &'static str, Value); 2] {
-    [
+/// The mode and initial position of every component that has them, and the signal of
+/// reference.fmu where the system has one (the package binds the move; see
+/// `ssp::systems::move_reference`).
+fn overrides(exp: Experiment, mode: Mode) -> Vec<(&'static str, &'static str, Value)> {
+    let mut o = vec![
         ("*", "mode", Value::Integer(mode.number() as i32)),
         ("*", "y0", Value::Real(exp.y0())),
-    ]
+    ];
+    if exp == Experiment::Sine {
+        o.extend([
+            (REFERENCE, "signal", Value::Integer(3)),
+            (REFERENCE, "sine.amplitude", Value::Real(SINE_AMPLITUDE)),
+            (REFERENCE, "sine.frequency", Value::Real(SINE_FREQUENCY)),
+        ]);
+    }
+    o
 }
 
 /// The monolithic reference: bench.fmu at the control period.
