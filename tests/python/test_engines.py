@@ -125,11 +125,10 @@ def assert_follows_the_judge(times, ys, judge, what):
 def oms(tmp: Path, *args: str) -> list[dict[str, float]]:
     if not OMS.is_file():
         pytest.skip(f"OMSimulator is not at {OMS} (the shared tools beside the checkout)")
-    # fixed-point iteration on the algebraic loops between components: OMSimulator's
-    # default, KINSOL, steps a valve command past the +-10 V the controller saturates at
-    # (10.00000015 V) while it iterates, which the valve refuses (docs/engines.md)
+    # OMSimulator's default loop solver (KINSOL), as a user runs it: it iterates a
+    # saturated valve command to 10.00000015 V, which the valve clamps (docs/engines.md)
     out = subprocess.run([str(OMS), "--resultFile=r.csv", "--emitEvents=false",
-                          "--algLoopSolver=fixedpoint", *args], cwd=tmp,
+                          *args], cwd=tmp,
                          capture_output=True, text=True, timeout=300)
     bad = [line for line in (out.stdout + out.stderr).splitlines()
            if line.startswith(("error:", "warning:"))]
