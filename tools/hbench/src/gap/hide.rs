@@ -164,6 +164,7 @@ pub struct Truth {
 
 impl Truth {
     /// The Rust model with these parameters, nothing else.
+    #[cfg(test)]
     pub fn rust(params: Params) -> Self {
         Truth {
             params,
@@ -192,6 +193,7 @@ impl Truth {
 }
 
 /// Sampled, noisy, quantised data of the Rust model `truth` under experiment `kind`.
+#[cfg(test)]
 pub fn measure(truth: &Params, kind: Kind, seed: u64) -> Result<(Experiment, Measured), String> {
     let sp = SensorParams {
         seed,
