@@ -114,19 +114,13 @@ enum Command {
     /// fitted_model.toml into DIR; never overwrites an input.
     Gap {
         /// Measured data: CSV, header line, first column `time` (s), then bench.fmu
-        /// variables in SI units (y, P1, P2, u1, u2) and the reference column. Repeat with
-        /// --experiment for several records of the same bench, fitted jointly
-        #[arg(long, required = true)]
-        data: Vec<PathBuf>,
+        /// variables in SI units (y, P1, P2, u1, u2) and the reference column
+        #[arg(long)]
+        data: PathBuf,
         /// How the data were taken (TOML: mode, supply_pressure, tank_pressure,
-        /// initial_position, [drive] kind = "proportional" (kp, reference) or "open_loop");
-        /// one per --data, in the same order
-        #[arg(long, required = true)]
-        experiment: Vec<PathBuf>,
-        /// Bounds of a recalibrated parameter, PATH=LO:HI in SI units (repeatable), e.g.
-        /// --bound fluid.bulk_modulus=1.2e9:1.9e9; default: +-20 % of the known value
-        #[arg(long = "bound", value_parser = gap::parse_bound)]
-        bounds: Vec<(String, [f64; 2])>,
+        /// initial_position, [drive] kind = "proportional" (kp, reference) or "open_loop")
+        #[arg(long)]
+        experiment: PathBuf,
         /// Starting model (parameter TOML); default: built-in parameters, every effect off
         #[arg(long)]
         model: Option<PathBuf>,
@@ -290,10 +284,9 @@ fn main() -> ExitCode {
         Command::Gap {
             data,
             experiment,
-            bounds,
             model,
             out,
-        } => gap::main(&data, &experiment, &bounds, model.as_deref(), &out),
+        } => gap::main(&data, &experiment, model.as_deref(), &out),
         Command::Hide {
             effects,
             experiment,

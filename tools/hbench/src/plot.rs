@@ -3,8 +3,6 @@
 
 use std::path::Path;
 
-use plotters::coord::ranged1d::ValueFormatter;
-use plotters::coord::types::RangedCoordf64;
 use plotters::prelude::*;
 
 /// One line of a panel.
@@ -66,87 +64,42 @@ pub fn time_traces(path: &Path, title: &str, panels: &[Panel]) -> Result<(), Str
 
 /// Write the panels stacked into an SVG file, against a shared x quantity.
 pub fn stacked(path: &Path, title: &str, x_desc: &str, panels: &[Panel]) -> Result<(), String> {
-    stacked_on(path, title, x_desc, panels, false)
-}
-
-/// As `stacked`, with a logarithmic x axis (frequency responses as engineers read them);
-/// points at or below zero are left out.
-pub fn stacked_log_x(
-    path: &Path,
-    title: &str,
-    x_desc: &str,
-    panels: &[Panel],
-) -> Result<(), String> {
-    stacked_on(path, title, x_desc, panels, true)
-}
-
-fn stacked_on(
-    path: &Path,
-    title: &str,
-    x_desc: &str,
-    panels: &[Panel],
-    log_x: bool,
-) -> Result<(), String> {
     let fail = |e: &dyn std::fmt::Display| failure(path, e);
     let root = canvas(path, title, PANEL_HEIGHT * panels.len() as u32 + 40)?;
     let (t0, t1) = bounds(panels);
     for (area, panel) in root.split_evenly((panels.len(), 1)).iter().zip(panels) {
         let (lo, hi) = range(&panel.lines);
-        let mut builder = ChartBuilder::on(area);
-        builder
+        let mut chart = ChartBuilder::on(area)
             .margin(8)
             .x_label_area_size(30)
-            .y_label_area_size(70);
-        if log_x {
-            let chart = builder
-                .build_cartesian_2d((t0.max(1e-12)..t1).log_scale(), lo..hi)
+            .y_label_area_size(70)
+            .build_cartesian_2d(t0..t1, lo..hi)
+            .map_err(|e| fail(&e))?;
+        chart
+            .configure_mesh()
+            .x_desc(x_desc)
+            .y_desc(panel.title.as_str())
+            .light_line_style(WHITE.mix(0.0))
+            .draw()
+            .map_err(|e| fail(&e))?;
+        for (k, line) in panel.lines.iter().enumerate() {
+            let color = Palette99::pick(k).to_rgba();
+            chart
+                .draw_series(LineSeries::new(line.points.iter().copied(), &color))
+                .map_err(|e| fail(&e))?
+                .label(line.label.as_str())
+                .legend(move |(x, y)| PathElement::new([(x, y), (x + 16, y)], color));
+        }
+        if panel.lines.len() > 1 {
+            chart
+                .configure_series_labels()
+                .background_style(WHITE.mix(0.8))
+                .border_style(BLACK)
+                .draw()
                 .map_err(|e| fail(&e))?;
-            draw_panel(chart, panel, x_desc, &fail)?;
-        } else {
-            let chart = builder
-                .build_cartesian_2d(t0..t1, lo..hi)
-                .map_err(|e| fail(&e))?;
-            draw_panel(chart, panel, x_desc, &fail)?;
         }
     }
     root.present().map_err(|e| fail(&e))
-}
-
-/// The mesh, the lines and their legend of one stacked panel, on a linear or log x axis.
-fn draw_panel<'a, DB, X>(
-    mut chart: ChartContext<'a, DB, Cartesian2d<X, RangedCoordf64>>,
-    panel: &Panel,
-    x_desc: &str,
-    fail: &dyn Fn(&dyn std::fmt::Display) -> String,
-) -> Result<(), String>
-where
-    DB: DrawingBackend + 'a,
-    X: Ranged<ValueType = f64> + ValueFormatter<f64>,
-{
-    chart
-        .configure_mesh()
-        .x_desc(x_desc)
-        .y_desc(panel.title.as_str())
-        .light_line_style(WHITE.mix(0.0))
-        .draw()
-        .map_err(|e| fail(&e))?;
-    for (k, line) in panel.lines.iter().enumerate() {
-        let color = Palette99::pick(k).to_rgba();
-        chart
-            .draw_series(LineSeries::new(line.points.iter().copied(), &color))
-            .map_err(|e| fail(&e))?
-            .label(line.label.as_str())
-            .legend(move |(x, y)| PathElement::new([(x, y), (x + 16, y)], color));
-    }
-    if panel.lines.len() > 1 {
-        chart
-            .configure_series_labels()
-            .background_style(WHITE.mix(0.8))
-            .border_style(BLACK)
-            .draw()
-            .map_err(|e| fail(&e))?;
-    }
-    Ok(())
 }
 
 /// One line of a log-log panel: its colour (palette index) and whether it is dashed.

@@ -9,7 +9,6 @@ use serde::Serialize;
 
 use super::data::{Drive, Experiment, Measured};
 use super::drive::Traces;
-use super::resonance::{resonance, unwrap_deg};
 
 /// Noise standard deviation of a sampled signal, estimated from the data alone by
 /// minimum statistics: white noise spreads its power evenly over all frequencies, while
@@ -188,8 +187,7 @@ pub struct BandGap {
     pub bins: usize,
 }
 
-/// Frequency response of an output (y, or P1 - P2) to the experiment's input (reference
-/// or command); phases unwrapped.
+/// Frequency response of y to the experiment's input (reference or command).
 #[derive(Debug, Clone, Serialize)]
 pub struct Response {
     pub freq: Vec<f64>,
@@ -200,17 +198,10 @@ pub struct Response {
     pub coherent: Vec<bool>,
     /// Bins the input drives (the simulated response is noiseless: no coherence needed).
     pub driven: Vec<bool>,
-    /// (natural frequency Hz, damping ratio) of each response's resonance.
-    pub measured_resonance: Option<(f64, f64)>,
-    pub simulated_resonance: Option<(f64, f64)>,
 }
 
-/// Natural frequency and damping ratio of the dominant pole pair of a closed-loop response
-/// (see `resonance`).
 #[derive(Debug, Clone, Serialize)]
 pub struct Resonance {
-    /// The response's output: "y" or "P1-P2".
-    pub output: String,
     pub measured_hz: f64,
     pub simulated_hz: f64,
     pub measured_damping: f64,
@@ -222,16 +213,11 @@ pub struct Localisation {
     pub signals: Vec<SignalGap>,
     pub windows: Vec<WindowGap>,
     pub bands: Vec<BandGap>,
-    /// Resonance of the response of y.
     pub resonance: Option<Resonance>,
-    /// Resonances of every response (y, and P1 - P2 when both pressures are recorded).
-    pub resonances: Vec<Resonance>,
     /// Delay that best explains the phase difference over the coherent bins (s).
     pub equivalent_delay: Option<f64>,
     #[serde(skip)]
     pub response: Option<Response>,
-    #[serde(skip)]
-    pub pressure_response: Option<Response>,
 }
 
 const WINDOWS: usize = 8;
@@ -252,11 +238,7 @@ const COHERENCE: f64 = 0.8;
 const INPUT_POWER: f64 = 1e-6;
 
 /// Cross and auto spectra of x -> y by Welch's method (Hann, 50 % overlap).
-pub(super) fn spectra(
-    x: &[f64],
-    y: &[f64],
-    period: f64,
-) -> (Vec<f64>, Vec<Complex<f64>>, Vec<f64>, Vec<f64>) {
+fn spectra(x: &[f64], y: &[f64], period: f64) -> (Vec<f64>, Vec<Complex<f64>>, Vec<f64>, Vec<f64>) {
     let n = SEGMENT.min(x.len().next_power_of_two() / 2).max(16);
     let fft = FftPlanner::new().plan_fft_forward(n);
     let hann: Vec<f64> = (0..n)
@@ -293,10 +275,10 @@ pub(super) fn spectra(
     (freq, sxy, sxx, syy)
 }
 
-/// Frequency response of `measured` and `simulated` outputs to the same input.
-fn response(period: f64, input: &[f64], measured: &[f64], simulated: &[f64]) -> Response {
-    let (freq, sxy_m, sxx, syy_m) = spectra(input, measured, period);
-    let (_, sxy_s, _, _) = spectra(input, simulated, period);
+fn response(m: &Measured, sim: &Traces, input: &[f64]) -> Response {
+    let period = m.period();
+    let (freq, sxy_m, sxx, syy_m) = spectra(input, m.get("y").unwrap_or(&[]), period);
+    let (_, sxy_s, _, _) = spectra(input, sim.get("y").unwrap_or(&[]), period);
     let db = |h: Complex<f64>| 20.0 * h.norm().max(1e-30).log10();
     let deg = |h: Complex<f64>| h.arg().to_degrees();
     let hm: Vec<_> = sxy_m
@@ -313,22 +295,51 @@ fn response(period: f64, input: &[f64], measured: &[f64], simulated: &[f64]) -> 
     // its last frequency empty, where coherence means nothing)
     let input_peak = sxx.iter().copied().fold(0.0, f64::max);
     let driven: Vec<bool> = sxx.iter().map(|x| *x > INPUT_POWER * input_peak).collect();
-    let coherent: Vec<bool> = (0..freq.len())
+    let coherent = (0..freq.len())
         .map(|k| driven[k] && sxy_m[k].norm_sqr() / (sxx[k] * syy_m[k]).max(1e-300) > COHERENCE)
         .collect();
-    let fm = resonance(&freq, &hm, &coherent);
-    let fs = resonance(&freq, &hs, &driven);
     Response {
         measured_db: hm.iter().map(|h| db(*h)).collect(),
         simulated_db: hs.iter().map(|h| db(*h)).collect(),
-        measured_deg: unwrap_deg(&hm.iter().map(|h| deg(*h)).collect::<Vec<_>>()),
-        simulated_deg: unwrap_deg(&hs.iter().map(|h| deg(*h)).collect::<Vec<_>>()),
-        measured_resonance: fm,
-        simulated_resonance: fs,
+        measured_deg: hm.iter().map(|h| deg(*h)).collect(),
+        simulated_deg: hs.iter().map(|h| deg(*h)).collect(),
         freq,
         coherent,
         driven,
     }
+}
+
+/// The resonance of a response: the bin above 50 Hz that stands highest over the lowest
+/// point between half its frequency and itself (a closed-loop response falls with
+/// frequency, so its resonance is a bump, not the maximum), if it stands 2 dB or more;
+/// damping from the -3 dB width around it.
+fn peak(freq: &[f64], db: &[f64], ok: &[bool]) -> Option<(f64, f64)> {
+    let idx: Vec<usize> = (0..freq.len())
+        .filter(|&k| ok[k] && freq[k] >= 50.0)
+        .collect();
+    let prominence = |k: usize| {
+        let valley = idx
+            .iter()
+            .filter(|&&j| freq[j] >= 0.5 * freq[k] && j <= k)
+            .map(|&j| db[j])
+            .fold(f64::INFINITY, f64::min);
+        db[k] - valley
+    };
+    let &k = idx
+        .iter()
+        .max_by(|a, b| prominence(**a).total_cmp(&prominence(**b)))?;
+    if prominence(k) < 2.0 {
+        return None;
+    }
+    let half = db[k] - 3.0;
+    let lo = (0..k)
+        .rev()
+        .find(|&i| db[i] < half)
+        .map_or(freq[0], |i| freq[i]);
+    let hi = (k..freq.len())
+        .find(|&i| db[i] < half)
+        .map_or(freq[freq.len() - 1], |i| freq[i]);
+    Some((freq[k], (hi - lo) / (2.0 * freq[k])))
 }
 
 pub fn localise(
@@ -376,33 +387,10 @@ pub fn localise(
         Drive::Proportional { reference, .. } => m.get(reference),
         Drive::OpenLoop => m.get("u1"),
     };
-    let input = input.filter(|x| x.len() >= 256);
-    let period = m.period();
-    let difference = |t: &dyn Fn(&str) -> Option<Vec<f64>>| -> Option<Vec<f64>> {
-        Some(t("P1")?.iter().zip(t("P2")?).map(|(a, b)| a - b).collect())
-    };
-    let pressure_response = input.and_then(|x| {
-        let measured = difference(&|s| m.get(s).map(<[f64]>::to_vec))?;
-        let simulated = difference(&|s| sim.get(s).map(<[f64]>::to_vec))?;
-        Some(response(period, x, &measured, &simulated))
-    });
-    let response = input.and_then(|x| Some(response(period, x, m.get("y")?, sim.get("y")?)));
-    let resonances: Vec<Resonance> = [("y", &response), ("P1-P2", &pressure_response)]
-        .into_iter()
-        .filter_map(|(output, r)| {
-            let r = r.as_ref()?;
-            let ((fm, zm), (fs, zs)) = (r.measured_resonance?, r.simulated_resonance?);
-            Some(Resonance {
-                output: output.into(),
-                measured_hz: fm,
-                simulated_hz: fs,
-                measured_damping: zm,
-                simulated_damping: zs,
-            })
-        })
-        .collect();
-    let resonance = resonances.iter().find(|r| r.output == "y").cloned();
-    let (mut bands, mut delay) = (Vec::new(), None);
+    let response = input
+        .filter(|x| x.len() >= 256)
+        .map(|x| response(m, sim, x));
+    let (mut bands, mut resonance, mut delay) = (Vec::new(), None, None);
     if let Some(r) = &response {
         let ratio = |k: usize| {
             (
@@ -430,6 +418,17 @@ pub fn localise(
             });
         }
         let ok = &r.coherent;
+        if let (Some((fm, zm)), Some((fs, zs))) = (
+            peak(&r.freq, &r.measured_db, ok),
+            peak(&r.freq, &r.simulated_db, &r.driven),
+        ) {
+            resonance = Some(Resonance {
+                measured_hz: fm,
+                simulated_hz: fs,
+                measured_damping: zm,
+                simulated_damping: zs,
+            });
+        }
         // least-squares slope of the phase difference against omega through the origin
         let (mut sxy, mut sxx) = (0.0, 0.0);
         for k in (0..r.freq.len()).filter(|&k| ok[k] && r.freq[k] > 0.0) {
@@ -446,10 +445,8 @@ pub fn localise(
         windows,
         bands,
         resonance,
-        resonances,
         equivalent_delay: delay,
         response,
-        pressure_response,
     }
 }
 
@@ -487,10 +484,10 @@ pub fn describe(l: &Localisation) -> Vec<String> {
             b.low_hz, b.high_hz, b.gain_db, b.phase_deg, b.bins
         ));
     }
-    for r in &l.resonances {
+    if let Some(r) = &l.resonance {
         s.push(format!(
-            "resonance of {} / input: measured {:.0} Hz (damping ratio {:.3}), simulated {:.0} Hz (damping ratio {:.3})",
-            r.output, r.measured_hz, r.measured_damping, r.simulated_hz, r.simulated_damping
+            "resonance: measured {:.0} Hz (damping {:.2}), simulated {:.0} Hz (damping {:.2})",
+            r.measured_hz, r.measured_damping, r.simulated_hz, r.simulated_damping
         ));
     }
     if let Some(d) = l.equivalent_delay {

@@ -8,9 +8,9 @@ use serde_json::json;
 
 use super::analysis::describe;
 use super::data::{Drive, Experiment, Measured};
-use super::effects::{candidate, Kind};
+use super::effects::candidate;
 use super::Outcome;
-use crate::plot::{stacked_log_x, time_traces, Line, Panel};
+use crate::plot::{stacked, time_traces, Line, Panel};
 
 fn line(label: &str, t: &[f64], v: &[f64], scale: f64) -> Line {
     Line {
@@ -74,20 +74,7 @@ fn figures(out: &Path, o: &Outcome, m: &Measured) -> Result<Vec<String>, String>
         &residuals,
     )?;
     files.extend(["traces.svg".to_string(), "residuals.svg".to_string()]);
-    let pairs = [
-        ("y", &o.first.response, &o.last.response),
-        (
-            "P1-P2",
-            &o.first.pressure_response,
-            &o.last.pressure_response,
-        ),
-    ];
-    let mut panels = Vec::new();
-    let mut csv = String::from("output,frequency_hz,coherent,measured_db,measured_deg,before_db,before_deg,after_db,after_deg\n");
-    for (output, r0, r1) in pairs {
-        let (Some(r0), Some(r1)) = (r0, r1) else {
-            continue;
-        };
+    if let (Some(r0), Some(r1)) = (&o.first.response, &o.last.response) {
         let pick = |v: &[f64]| -> Vec<(f64, f64)> {
             r0.freq
                 .iter()
@@ -97,8 +84,8 @@ fn figures(out: &Path, o: &Outcome, m: &Measured) -> Result<Vec<String>, String>
                 .map(|((f, v), _)| (*f, *v))
                 .collect()
         };
-        let compared = |title: String, measured: &[f64], before: &[f64], after: &[f64]| Panel {
-            title,
+        let compared = |title: &str, measured: &[f64], before: &[f64], after: &[f64]| Panel {
+            title: title.into(),
             lines: [
                 ("measured", measured),
                 ("model before", before),
@@ -111,22 +98,27 @@ fn figures(out: &Path, o: &Outcome, m: &Measured) -> Result<Vec<String>, String>
             })
             .collect(),
         };
-        panels.push(compared(
-            format!("|{output} / input| (dB)"),
-            &r0.measured_db,
-            &r0.simulated_db,
-            &r1.simulated_db,
-        ));
-        panels.push(compared(
-            format!("{output}: phase (deg)"),
-            &r0.measured_deg,
-            &r0.simulated_deg,
-            &r1.simulated_deg,
-        ));
+        let panels = [
+            compared(
+                "|y / input| (dB)",
+                &r0.measured_db,
+                &r0.simulated_db,
+                &r1.simulated_db,
+            ),
+            compared(
+                "phase (deg)",
+                &r0.measured_deg,
+                &r0.simulated_deg,
+                &r1.simulated_deg,
+            ),
+        ];
+        let mut csv = String::from(
+            "frequency_hz,coherent,measured_db,measured_deg,before_db,before_deg,after_db,after_deg\n",
+        );
         for k in 0..r0.freq.len() {
             let _ = writeln!(
                 csv,
-                "{output},{},{},{},{},{},{},{},{}",
+                "{},{},{},{},{},{},{},{}",
                 r0.freq[k],
                 r0.coherent[k],
                 r0.measured_db[k],
@@ -137,12 +129,10 @@ fn figures(out: &Path, o: &Outcome, m: &Measured) -> Result<Vec<String>, String>
                 r1.simulated_deg[k]
             );
         }
-    }
-    if !panels.is_empty() {
         std::fs::write(out.join("response.csv"), csv).map_err(|err| err.to_string())?;
-        stacked_log_x(
+        stacked(
             &out.join("response.svg"),
-            "Frequency response estimates (coherent bins; phase unwrapped)",
+            "Frequency response estimates (coherent bins)",
             "frequency (Hz)",
             &panels,
         )?;
@@ -161,8 +151,6 @@ pub fn write(out: &Path, o: &Outcome, e: &Experiment, m: &Measured) -> Result<()
     let report = json!({
         "steps": o.steps,
         "initial_gap": o.initial_gap,
-        "record_gaps": o.record_gaps,
-        "advice": o.advice,
         "remaining_gap": o.remaining_gap,
         "noise_floor": 1.0,
         "noise_floor_gap": super::NOISE_FLOOR_GAP,
@@ -199,44 +187,26 @@ pub fn write(out: &Path, o: &Outcome, e: &Experiment, m: &Measured) -> Result<()
     for s in describe(&o.first) {
         let _ = writeln!(md, "- {s}");
     }
-    if o.record_gaps.len() > 1 {
-        md.push_str("\nRecords fitted jointly (the figures and the localisation are the first's):\n\n| record | gap before | gap after |\n|---|---|---|\n");
-        for (i, (a, b)) in o.record_gaps.iter().enumerate() {
-            let _ = writeln!(md, "| {} | {a:.2} | {b:.2} |", i + 1);
-        }
-    }
     for (i, step) in o.steps.iter().enumerate() {
-        let what = match step.kind {
-            Kind::Add => format!("add `{}`", step.effect),
-            Kind::Recalibrate => format!("recalibrate `{}`", step.effect),
-        };
-        let _ = writeln!(md, "\n## Step {}: {what}\n", i + 1);
-        if step.kind == Kind::Add {
-            if let Some(c) = hbmodel::Effect::from_name(&step.effect).and_then(candidate) {
-                let _ = writeln!(md, "Signature of this effect: {}.\n", c.signature);
-            }
+        let _ = writeln!(md, "\n## Step {}: add `{}`\n", i + 1, step.effect);
+        if let Some(c) = hbmodel::Effect::from_name(&step.effect).and_then(candidate) {
+            let _ = writeln!(md, "Signature of this effect: {}.\n", c.signature);
         }
         let _ = writeln!(
             md,
-            "Fitted: {}. Gap {:.2} -> {:.2}.\n\nEvidence: {}.\n\n\
-             Each hypothesis is fitted on half of the samples (alternate {:.0} ms blocks) and \
-             judged on the other half; its score is N_eff ln(chi2 before / chi2 after) - k ln N_eff \
-             on the judged half, N_eff = {:.0} the effective number of independent residuals \
-             (the residual's correlation counted).\n\n\
-             | hypothesis | judged gap | score | parameters |\n|---|---|---|---|",
+            "Fitted: {}. Gap {:.2} -> {:.2}.\n\n| candidate | gap after fit | score (chi2 drop - k ln N) | parameters |\n|---|---|---|---|",
             step.parameters.iter().map(|(k, v)| format!("{k} = {v}")).collect::<Vec<_>>().join(", "),
             step.gap_before,
-            step.gap_after,
-            step.evidence.statement,
-            super::fit::HELD_OUT_BLOCK * 1e3,
-            step.evidence.effective_samples,
+            step.gap_after
         );
-        for s in &step.candidates {
+        let mut c = step.candidates.clone();
+        c.sort_by(|a, b| b.score.total_cmp(&a.score));
+        for s in c {
             let _ = writeln!(
                 md,
-                "| {} | {:.2} | {:.1} | {} |",
-                s.label,
-                s.judged_gap,
+                "| {} | {:.2} | {:.0} | {} |",
+                s.effect,
+                s.gap,
                 s.score,
                 s.parameters
                     .iter()
@@ -245,14 +215,6 @@ pub fn write(out: &Path, o: &Outcome, e: &Experiment, m: &Measured) -> Result<()
                     .join(", ")
             );
         }
-        if let Some(a) = &step.advice {
-            let _ = writeln!(md, "\nWhat to measure next: {}.\n", a.statement);
-            advice_table(&mut md, a);
-        }
-    }
-    if let Some(a) = &o.advice {
-        let _ = writeln!(md, "\n## What to measure next\n\n{}.\n", a.statement);
-        advice_table(&mut md, a);
     }
     md.push_str("\n## After\n\n");
     for s in describe(&o.last) {
@@ -273,12 +235,4 @@ fn list<'a>(names: impl Iterator<Item = &'a str>) -> String {
     } else {
         v.join(", ")
     }
-}
-
-fn advice_table(md: &mut String, a: &super::advice::Advice) {
-    md.push_str("| experiment | expected chi-square between them | RMS difference / noise |\n|---|---|---|\n");
-    for x in &a.experiments {
-        let _ = writeln!(md, "| {} | {:.1} | {:.3} |", x.experiment, x.chi2, x.gap);
-    }
-    md.push('\n');
 }
