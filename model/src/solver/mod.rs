@@ -123,7 +123,9 @@ where
         f(t0, x, &mut dx);
         stats.rhs_evaluations += 1;
         stats.steps += 1;
-        x.iter_mut().zip(&dx).for_each(|(xi, d)| *xi += (t1 - t0) * d);
+        x.iter_mut()
+            .zip(&dx)
+            .for_each(|(xi, d)| *xi += (t1 - t0) * d);
         if x.iter().any(|v| !v.is_finite()) {
             return Err(SolverError::NonFinite { t: t1 });
         }
