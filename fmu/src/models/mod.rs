@@ -11,7 +11,7 @@ pub mod servovalve;
 use std::path::{Path, PathBuf};
 use std::sync::{Mutex, OnceLock};
 
-use hbmodel::effects::{Effect, PARAMS};
+use hbmodel::effects::{Effect, ParamSpec, PARAMS};
 use hbmodel::params::ValveModel;
 use hbmodel::Params;
 
@@ -249,33 +249,15 @@ pub fn registry_parameters<M: HasParams + 'static>(
     PARAMS
         .iter()
         .filter(|spec| spec.path != FIXED_STEP && keep(spec.path))
-        .map(|spec| {
-            real_parameter(
-                &rename(fmu_name(spec.path)),
-                spec.description,
-                spec.unit,
-                spec.default_value(),
-                spec.min,
-                spec.max,
-                move |m: &M| spec.get(m.params()),
-                move |m: &mut M, v| spec.set(m.params_mut(), v),
-            )
-        })
+        .map(|spec| registry_parameter(spec, &rename(fmu_name(spec.path))))
         .collect()
 }
 
-/// The real-time mode's step, which every FMU with an integrator declares last so that
-/// the value references it had before the mode existed keep their numbers.
-pub const FIXED_STEP: &str = "solver.fixed_step";
-
-/// The `solver.fixed_step` parameter (see [`FIXED_STEP`]).
-pub fn fixed_step_parameter<M: HasParams + 'static>() -> VarDef<M> {
-    let spec = PARAMS
-        .iter()
-        .find(|spec| spec.path == FIXED_STEP)
-        .expect("solver.fixed_step is in the registry");
+/// A registry parameter as a real FMU parameter named `name`, read and written in the
+/// model's parameter tree.
+fn registry_parameter<M: HasParams + 'static>(spec: &'static ParamSpec, name: &str) -> VarDef<M> {
     real_parameter(
-        FIXED_STEP,
+        name,
         spec.description,
         spec.unit,
         spec.default_value(),
@@ -284,6 +266,21 @@ pub fn fixed_step_parameter<M: HasParams + 'static>() -> VarDef<M> {
         move |m: &M| spec.get(m.params()),
         move |m: &mut M, v| spec.set(m.params_mut(), v),
     )
+}
+
+/// The real-time mode's step, which every FMU with an integrator declares last so that
+/// the value references it had before the mode existed keep their numbers.
+pub const FIXED_STEP: &str = "solver.fixed_step";
+
+/// The `solver.fixed_step` parameter (see [`FIXED_STEP`]).
+pub fn fixed_step_parameter<M: HasParams + 'static>() -> VarDef<M> {
+    // the registry declares it (effects::PARAMS); the find cannot miss, and the specs are
+    // built at packaging and first instantiation, inside the ABI's panic guard
+    let spec = PARAMS
+        .iter()
+        .find(|spec| spec.path == FIXED_STEP)
+        .expect("solver.fixed_step is in the registry");
+    registry_parameter(spec, FIXED_STEP)
 }
 
 /// `effect.<name>` Boolean switches for the given effects.
