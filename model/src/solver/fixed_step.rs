@@ -37,6 +37,13 @@ pub const MAX_NEWTON: usize = 8;
 /// with a fresh one: the inputs, hence the valve openings, jump there).
 pub const JACOBIAN_REFRESH: usize = 10;
 
+/// Most fixed steps one interval may take. The mode exists for a bounded cost per
+/// `doStep`: 10,000 steps cover a 1 s communication interval at 0.1 ms (the smallest step
+/// docs/realtime.md needs, for the two-stage valve), about 0.2-2 s of CPU. A smaller
+/// `solver.fixed_step` against a longer interval (the fuzzer's 5e-324 s made a 1 ns
+/// interval an endless loop) is refused with the count it would need.
+pub const MAX_STEPS_PER_INTERVAL: f64 = 1e4;
+
 /// Integrate from `t0` to `t1` with steps of at most `h`, equal steps of
 /// (t1 - t0) / ceil((t1 - t0) / h). The caller guarantees a valid interval.
 #[allow(clippy::too_many_arguments)]
@@ -56,7 +63,18 @@ where
     let n = x.len();
     let span = t1 - t0;
     // a rounding error over the ratio must not add a step of a few ulps
-    let steps = (span / h - STEP_ROUNDING).ceil().max(1.0) as usize;
+    let steps = (span / h - STEP_ROUNDING).ceil().max(1.0);
+    if !(steps <= MAX_STEPS_PER_INTERVAL) {
+        return Err(SolverError::Failed {
+            t: t0,
+            message: format!(
+                "solver.fixed_step = {h:e} s would take {steps:e} steps over this {span:e} s \
+                 interval, more than the real-time mode's {MAX_STEPS_PER_INTERVAL:e}: raise \
+                 solver.fixed_step or shorten the communication step"
+            ),
+        });
+    }
+    let steps = steps as usize;
     let dt = span / steps as f64;
     let mut w = Work::new(n);
     for k in 0..steps {
@@ -323,5 +341,26 @@ mod tests {
         .unwrap();
         assert_eq!(stats.steps, 2);
         assert!((x[0] - (-1e-3f64).exp()).abs() < 1e-9, "{x:?}");
+    }
+
+    #[test]
+    fn a_step_too_small_for_the_interval_is_refused_not_looped_on() {
+        let f = |_t: f64, x: &[f64], dx: &mut [f64]| dx[0] = -x[0];
+        let mut x = [1.0];
+        let mut stats = SolverStats::default();
+        for h in [5e-324, 1e-12] {
+            let r = integrate(&f, &mut x, 0.0, 1e-3, h, &tol(1), &[1.0], &mut stats);
+            match r {
+                Err(SolverError::Failed { message, .. }) => {
+                    assert!(message.contains("solver.fixed_step"), "{message}")
+                }
+                other => panic!("expected a refusal, got {other:?}"),
+            }
+        }
+        assert_eq!(stats.steps, 0);
+        assert_eq!(x, [1.0]);
+        // the largest interval the bound allows still runs
+        integrate(&f, &mut x, 0.0, 1.0, 1e-4, &tol(1), &[1.0], &mut stats).unwrap();
+        assert_eq!(stats.steps, 10_000);
     }
 }
