@@ -3,7 +3,7 @@
 
 use modeldesc::{ModelDescription, VarKind};
 
-/// How the component FMUs plug together (DESIGN.md port causality).
+/// How the component FMUs plug together (ARCHITECTURE.md, port causality).
 pub const WIRING: &str = "\
            u1                          u2
             v                           v

@@ -56,3 +56,18 @@ pub struct CallbackFunctions {
     pub step_finished: StepFinished,
     pub component_environment: ComponentEnvironment,
 }
+
+/// Log categories declared in every model description and used by the instances'
+/// logger: declared here, where both the description (`slave`) and the logger
+/// (`instance`) can read them without importing each other.
+pub const LOG_CATEGORIES: [(&str, &str); 3] = [
+    (
+        "logStatusError",
+        "Errors: misuse of the API, refused values, failed steps",
+    ),
+    ("logStatusWarning", "Warnings"),
+    (
+        "logEvents",
+        "Life cycle: instantiation, initialization, termination",
+    ),
+];

@@ -93,8 +93,8 @@ pub fn real_input<M: 'static>(
     unit: &str,
     start: f64,
     bounds: (Option<f64>, Option<f64>),
-    get: RealGetter<M>,
-    set: RealSetter<M>,
+    get: impl Fn(&M) -> f64 + Send + Sync + 'static,
+    set: impl Fn(&mut M, f64) + Send + Sync + 'static,
 ) -> VarDef<M> {
     let (min, max) = bounds;
     let mut decl = displayed(
@@ -142,7 +142,7 @@ pub fn real_output<M: 'static>(
     name: &str,
     description: &str,
     unit: &str,
-    get: fn(&M) -> f64,
+    get: impl Fn(&M) -> f64 + Send + Sync + 'static,
 ) -> VarDef<M> {
     let decl = ScalarVariable::real_output(name, 0, description, si_unit(unit));
     VarDef::new(
@@ -339,7 +339,7 @@ pub fn description<M: Model>() -> modeldesc::ModelDescription {
         model_identifier: info.model_identifier.to_string(),
         description: info.description.to_string(),
         generation_tool: format!("HydroBench {}", env!("CARGO_PKG_VERSION")),
-        log_categories: crate::instance::LOG_CATEGORIES
+        log_categories: crate::ffi::LOG_CATEGORIES
             .iter()
             .map(|(n, d)| (n.to_string(), d.to_string()))
             .collect(),

@@ -6,6 +6,16 @@ use crate::friction::{dry_friction, viscous_friction, FrictionParams};
 use crate::params::Params;
 use crate::params::GRAVITY;
 
+// The oil's stiffness and its cavitation clamp are properties of the fluid (`fluid`); they
+// stay reachable here for the component FMUs in fmu/src/models.
+pub use crate::fluid::{cavitation_factor, oil_stiffness, CAVITATION_BAND, CAVITATION_PRESSURE};
+
+/// The fluid as the model uses it, [`Params::fluid_in_use`] (kept under this name for the
+/// component FMUs).
+pub fn fluid_in_use(p: &Params) -> FluidParams {
+    p.fluid_in_use()
+}
+
 /// Smallest chamber volume the model accepts, as a fraction of the dead volume. The end
 /// stops keep the piston within a fraction of a millimetre of the stroke ends, so this
 /// floor is never reached in a physical run; it only keeps trial states of the
@@ -19,38 +29,6 @@ pub const END_STOP_STIFFNESS: f64 = 1e8;
 /// End-stop contact damping (N.s/m): near-critical for the 5.8 kg piston on that
 /// stiffness (2*sqrt(k*m) = 4.8e4), so the piston does not bounce off the stop.
 pub const END_STOP_DAMPING: f64 = 4.8e4;
-
-/// Absolute pressure at which the oil releases gas and vapour (Pa). Chamber pressures
-/// cannot fall below it: the mixture turns infinitely compliant there.
-pub const CAVITATION_PRESSURE: f64 = 0.05e5;
-
-/// Width of the band above the cavitation pressure over which the stiffness of the
-/// oil fades to zero (Pa): a smooth clamp, so the integrator sees no kink.
-pub const CAVITATION_BAND: f64 = 0.5e5;
-
-/// Factor applied to the bulk modulus near cavitation: 1 above the band, fading to 0 at
-/// the cavitation pressure, 0 below. dP/dt = factor*beta/V*sum(Q) then cannot carry the
-/// pressure below the floor, whatever the flows: the documented clamp of the state.
-pub fn cavitation_factor(p: f64) -> f64 {
-    let s = ((p - CAVITATION_PRESSURE) / CAVITATION_BAND).clamp(0.0, 1.0);
-    s * s * (3.0 - 2.0 * s) // smoothstep: C1 at both ends of the band
-}
-
-/// Effective bulk modulus of the oil at absolute pressure p, with entrained air when
-/// `air` and with the cavitation clamp: the stiffness every volume of the bench uses.
-pub fn oil_stiffness(fluid: &FluidParams, air: bool, p: f64) -> f64 {
-    fluid.effective_bulk_modulus(p, air) * cavitation_factor(p)
-}
-
-/// The fluid as the model uses it: at the reference temperature unless the temperature
-/// effect is on.
-pub fn fluid_in_use(p: &Params) -> FluidParams {
-    let mut fluid = p.fluid;
-    if !p.has(Effect::Temperature) {
-        fluid.temperature = fluid.reference_temperature;
-    }
-    fluid
-}
 
 /// The actuator as the bench assembles it.
 #[derive(Debug, Clone)]
@@ -85,7 +63,7 @@ impl Actuator {
     /// viscous friction with mu (A.14)-(A.16).
     pub fn from_params(p: &Params, extra_volume: [f64; 2], added_mass: f64) -> Actuator {
         let on = |e: Effect| p.has(e);
-        let mu_ratio = fluid_in_use(p).viscosity_ratio();
+        let mu_ratio = p.fluid_in_use().viscosity_ratio();
         let a = &p.actuator;
         let payload = if on(Effect::Payload) {
             a.payload_mass

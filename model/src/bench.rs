@@ -1,15 +1,23 @@
 //! The assembled bench: SV1, SV2, manifold and actuator between supply and tank, in one
 //! state vector for one stiff solver.
 //!
-//! State layout: `[y, v, P1, P2 | SV1 states | SV2 states | node pressures | passage flows]`.
+//! State layout: `[y, v, P1, P2 | SV1 states | SV2 states | node pressures | passage flows]`,
+//! the blocks of a [`Composition`] of the actuator, the two valves and the manifold.
 
-use crate::actuator::{fluid_in_use, oil_stiffness, Actuator};
+use std::sync::Arc;
+
+use crate::actuator::Actuator;
+use crate::component::actuator::{self, ActuatorComponent};
+use crate::component::network::{self, Network};
+use crate::component::valve::{self, Valve};
+use crate::component::{self, Component, Composition, Source};
 use crate::effects::Effect;
-use crate::fluid::FluidParams;
-use crate::manifold::{Circuit, NetworkState, Port};
+use crate::manifold::{Circuit, Port};
 use crate::params::{Mode, ParamError, Params};
-use crate::servovalve::{self, PortFlows, PortPressures, Servovalve};
-use crate::solver::{self, SolverError, SolverStats, Tolerances};
+use crate::servovalve::{self, Servovalve};
+use crate::solver::adaptive::{Memory, Workspace};
+use crate::solver::jacobian::{Colouring, Pattern};
+use crate::solver::{self, Carry, SolverError, SolverStats, Tolerances};
 
 /// Inputs held constant over one integration interval.
 #[derive(Debug, Clone, Copy, PartialEq, Default, serde::Serialize, serde::Deserialize)]
@@ -63,15 +71,19 @@ const Y: usize = 0;
 const V: usize = 1;
 const P1: usize = 2;
 
-/// The bench model: parameters turned into the elements the right-hand side needs.
+/// The blocks of the composition, in the order of their states.
+const ACT: usize = 0;
+const SV: [usize; 2] = [1, 2];
+const NET: usize = 3;
+
+/// The bench model: the components its parameters ask for, joined port to port.
 #[derive(Debug)]
 pub struct Bench {
     params: Params,
-    valves: [Box<dyn Servovalve>; 2],
+    valves: [Arc<dyn Servovalve>; 2],
     circuit: Circuit,
     actuator: Actuator,
-    fluid: FluidParams,
-    air: bool,
+    system: Composition,
     layout: Layout,
 }
 
@@ -79,31 +91,90 @@ impl Bench {
     pub fn new(params: &Params) -> Result<Bench, ParamError> {
         params.validate()?;
         let p = params;
-        let fluid = fluid_in_use(p);
-        let valves = [
-            servovalve::build(&p.sv1, p),
-            servovalve::build(p.sv2_effective(), p),
+        let fluid = p.fluid_in_use();
+        let air = p.has(Effect::EntrainedAir);
+        let valves: [Arc<dyn Servovalve>; 2] = [
+            servovalve::build(&p.sv1, p).into(),
+            servovalve::build(p.sv2_effective(), p).into(),
         ];
         let circuit = Circuit::from_params(p);
         let actuator = Actuator::from_params(p, circuit.chamber_volume, circuit.added_mass);
-        let n0 = valves[0].n_states();
-        let n1 = valves[1].n_states();
-        let sv = [4, 4 + n0];
-        let nodes = 4 + n0 + n1;
-        let passages = nodes + circuit.nodes.len();
+        let out = |block: usize, port: usize| Source::Output { block, port };
+        // Mode 1 drives the actuator with SV1 alone: SV2 stays connected, at null.
+        let command = |k: usize| match (p.mode, k) {
+            (Mode::FourWaySingle, 1) => Source::Constant(0.0),
+            _ => Source::External(k),
+        };
+        let valve_block = |k: usize| -> (Box<dyn Component>, Vec<Source>) {
+            (
+                Box::new(Valve::new(valves[k].clone(), &format!("{}", k + 1))),
+                vec![
+                    command(k),
+                    Source::Constant(p.supply_pressure),
+                    Source::Constant(p.tank_pressure),
+                    out(NET, 2 * k),
+                    out(NET, 2 * k + 1),
+                ],
+            )
+        };
+        let blocks: Vec<(Box<dyn Component>, Vec<Source>)> = vec![
+            (
+                Box::new(ActuatorComponent::new(
+                    actuator.clone(),
+                    fluid,
+                    air,
+                    p.tank_pressure,
+                )),
+                vec![
+                    out(NET, network::CHAMBER_Q),
+                    out(NET, network::CHAMBER_Q + 1),
+                    Source::External(2),
+                ],
+            ),
+            valve_block(0),
+            valve_block(1),
+            (
+                Box::new(Network::new(circuit.clone(), fluid, air, p.tank_pressure)),
+                vec![
+                    out(SV[0], valve::Q_A),
+                    out(SV[0], valve::Q_B),
+                    out(SV[1], valve::Q_A),
+                    out(SV[1], valve::Q_B),
+                    out(ACT, actuator::OUT_P1),
+                    out(ACT, actuator::OUT_P2),
+                ],
+            ),
+        ];
+        // chamber pressures, then the port pressures, the valve flows, and the chamber
+        // flows those make
+        let (pressures, flows) = (
+            0..network::CHAMBER_Q,
+            network::CHAMBER_Q..network::CHAMBER_Q + 2,
+        );
+        let system = Composition::new(
+            blocks,
+            vec![
+                (ACT, 0..2),
+                (NET, pressures),
+                (SV[0], 0..4),
+                (SV[1], 0..4),
+                (NET, flows),
+            ],
+        );
+        let start = |k: usize| system.block(k).1.start;
+        let nodes = start(NET);
         let layout = Layout {
-            sv,
+            sv: [start(SV[0]), start(SV[1])],
             nodes,
-            passages,
-            len: passages + circuit.passages.len(),
+            passages: nodes + circuit.nodes.len(),
+            len: system.n_states(),
         };
         Ok(Bench {
             params: p.clone(),
             valves,
             circuit,
             actuator,
-            air: p.has(Effect::EntrainedAir),
-            fluid,
+            system,
             layout,
         })
     }
@@ -118,6 +189,11 @@ impl Bench {
 
     pub fn actuator(&self) -> &Actuator {
         &self.actuator
+    }
+
+    /// The components and their connections.
+    pub fn system(&self) -> &Composition {
+        &self.system
     }
 
     pub fn n_states(&self) -> usize {
@@ -160,153 +236,57 @@ impl Bench {
         x
     }
 
-    /// Absolute tolerances and typical magnitudes of every state.
+    /// Absolute tolerances and typical magnitudes of every state, by the components'
+    /// one tolerance policy ([`crate::component::tolerances`]).
     pub fn state_scales(&self, rtol: f64) -> (Vec<f64>, Vec<f64>) {
-        let n = self.layout.len;
-        let mut atol = vec![0.0; n];
-        let mut scale = vec![0.0; n];
-        // 1 nm, 1 um/s, 1 Pa, 1e-3 L/min: well below sensor resolution, tightened with rtol
-        let f = (rtol / 1e-6).min(1.0);
-        atol[Y] = 1e-9 * f;
-        atol[V] = 1e-6 * f;
-        atol[P1] = 1.0 * f;
-        atol[P1 + 1] = 1.0 * f;
-        scale[Y] = 1e-3;
-        scale[V] = 1e-2;
-        scale[P1] = 1e6;
-        scale[P1 + 1] = 1e6;
-        for (k, valve) in self.valves.iter().enumerate() {
-            let o = self.layout.sv[k];
-            let m = valve.n_states();
-            valve.absolute_tolerances(&mut atol[o..o + m]);
-            for i in o..o + m {
-                scale[i] = atol[i] * 1e4;
-                atol[i] *= f;
-            }
-        }
-        for i in self.layout.nodes..self.layout.passages {
-            atol[i] = 1.0 * f;
-            scale[i] = 1e6;
-        }
-        for i in self.layout.passages..n {
-            atol[i] = 1e-3 * crate::params::LPM * f;
-            scale[i] = 1e-5;
-        }
-        (atol, scale)
+        component::tolerances(self.system.states(), rtol)
     }
 
-    fn network_state<'a>(&self, x: &'a [f64]) -> NetworkState<'a> {
-        let l = &self.layout;
-        NetworkState {
-            nodes: &x[l.nodes..l.passages],
-            flows: &x[l.passages..l.len],
-            chambers: [x[P1], x[P1 + 1]],
-            tank: self.params.tank_pressure,
-        }
-    }
-
-    fn pressure(&self, x: &[f64], port: Port) -> f64 {
-        self.network_state(x).pressure(port)
-    }
-
-    fn bulk_modulus(&self, p: f64) -> f64 {
-        oil_stiffness(&self.fluid, self.air, p)
-    }
-
-    /// Valve port flows for the state.
-    fn valve_flows(&self, x: &[f64], u: [f64; 2]) -> [[f64; 2]; 2] {
-        self.valve_port_flows(x, u).map(|f| [f.a, f.b])
-    }
-
-    fn valve_port_flows(&self, x: &[f64], u: [f64; 2]) -> [PortFlows; 2] {
-        std::array::from_fn(|k| {
-            let valve = &self.valves[k];
-            let o = self.layout.sv[k];
-            valve.flows(
-                u[k],
-                &x[o..o + valve.n_states()],
-                &self.port_pressures(x, k),
-            )
-        })
-    }
-
-    /// Pressures at the four ports of valve k.
-    fn port_pressures(&self, x: &[f64], k: usize) -> PortPressures {
-        let ports = self.circuit.valve_ports[k];
-        PortPressures {
-            supply: self.params.supply_pressure,
-            tank: self.params.tank_pressure,
-            a: self.pressure(x, ports[0]),
-            b: self.pressure(x, ports[1]),
-        }
+    fn external(inputs: &Inputs) -> [f64; 3] {
+        [inputs.u1, inputs.u2, inputs.f_ext]
     }
 
     /// Right-hand side dx/dt = f(x, inputs). Returns the chamber inflows (Q1, Q2) from
     /// the manifold side, which the outputs need too.
     pub fn derivatives(&self, x: &[f64], inputs: &Inputs, dx: &mut [f64]) -> [f64; 2] {
-        let l = &self.layout;
-        let act = &self.actuator;
-        let u = self.commands(inputs);
-        let p = [x[P1], x[P1 + 1]];
-        let qv = self.valve_flows(x, u);
-        let (dx_rest, dx_flows) = dx.split_at_mut(l.passages);
-        let q_ch = self.circuit.derivatives(
-            &self.network_state(x),
-            &qv,
-            |p| self.bulk_modulus(p),
-            &mut dx_rest[l.nodes..],
-            dx_flows,
-        );
-        let dp = act.pressure_derivatives(x[Y], x[V], p, q_ch, self.params.tank_pressure, |p| {
-            self.bulk_modulus(p)
-        });
-        dx[P1..P1 + 2].copy_from_slice(&dp);
-        // (4.4) motion
-        dx[Y] = x[V];
-        dx[V] = act.motion(x[Y], x[V], p, inputs.f_ext).acceleration;
-        for (k, valve) in self.valves.iter().enumerate() {
-            let o = l.sv[k];
-            let m = valve.n_states();
-            // the port pressures reach valves whose dynamics feel them (flow forces)
-            let pp = self.port_pressures(x, k);
-            valve.derivatives_at(u[k], &x[o..o + m], &pp, &mut dx[o..o + m]);
-        }
-        q_ch
+        let s = self.system.derivatives(x, &Self::external(inputs), dx);
+        let q = |k: usize| self.system.signal(&s, NET, network::CHAMBER_Q + k);
+        [q(0), q(1)]
+    }
+
+    /// d(dx_i)/d(x_j) at `x`, row-major n x n, exact: each component's Jacobian chained
+    /// through the port connections.
+    pub fn jacobian(&self, x: &[f64], inputs: &Inputs, jac: &mut [f64]) {
+        self.system.jacobian(x, &Self::external(inputs), jac)
     }
 
     /// The outputs at state x.
     pub fn outputs(&self, x: &[f64], inputs: &Inputs) -> Outputs {
         let mut dx = vec![0.0; self.layout.len];
-        let q_in = self.derivatives(x, inputs, &mut dx);
-        let u = self.commands(inputs);
-        let qv = self.valve_port_flows(x, u);
-        let ports = &self.circuit.valve_ports;
+        let s = self.system.derivatives(x, &Self::external(inputs), &mut dx);
+        let sig = |block: usize, port: usize| self.system.signal(&s, block, port);
         let motion = self
             .actuator
             .motion(x[Y], x[V], [x[P1], x[P1 + 1]], inputs.f_ext);
-        let spool = |k: usize| {
-            let o = self.layout.sv[k];
-            self.valves[k].spool_position(u[k], &x[o..o + self.valves[k].n_states()])
-        };
         Outputs {
             y: x[Y],
             v: x[V],
             a: dx[V],
             p1: x[P1],
             p2: x[P1 + 1],
-            p_a1: self.pressure(x, ports[0][0]),
-            p_b1: self.pressure(x, ports[0][1]),
-            p_a2: self.pressure(x, ports[1][0]),
-            p_b2: self.pressure(x, ports[1][1]),
-            q_a1: qv[0].a,
-            q_b1: qv[0].b,
-            q_a2: qv[1].a,
-            q_b2: qv[1].b,
-            q_supply: qv[0].supply + qv[1].supply,
-            q1: q_in[0],
-            q2: q_in[1],
-            x_s1: spool(0),
-            x_s2: spool(1),
+            p_a1: sig(NET, 0),
+            p_b1: sig(NET, 1),
+            p_a2: sig(NET, 2),
+            p_b2: sig(NET, 3),
+            q_a1: sig(SV[0], valve::Q_A),
+            q_b1: sig(SV[0], valve::Q_B),
+            q_a2: sig(SV[1], valve::Q_A),
+            q_b2: sig(SV[1], valve::Q_B),
+            q_supply: sig(SV[0], valve::Q_S) + sig(SV[1], valve::Q_S),
+            q1: sig(NET, network::CHAMBER_Q),
+            q2: sig(NET, network::CHAMBER_Q + 1),
+            x_s1: sig(SV[0], valve::X_S),
+            x_s2: sig(SV[1], valve::X_S),
             friction: motion.friction,
         }
     }
@@ -322,6 +302,10 @@ pub struct SimState {
     /// that a restored run replays bit for bit).
     #[serde(default)]
     pub step: Option<f64>,
+    /// The rest of what the integrator carries (its Jacobian, Newton's rate): results
+    /// depend on it, so it is state too.
+    #[serde(default)]
+    pub integrator: Memory,
 }
 
 /// A bench with its state: set inputs, advance to a time, read outputs.
@@ -331,6 +315,8 @@ pub struct Simulation {
     state: SimState,
     tolerances: Tolerances,
     scales: Vec<f64>,
+    /// The integrator's buffers and LU: derived from `state.integrator`, never state.
+    workspace: Option<Workspace>,
     pub stats: SolverStats,
 }
 
@@ -340,6 +326,7 @@ impl Simulation {
         let inputs = Inputs::default();
         let x = bench.initial_state(params.initial_position, &inputs);
         let (atol, scales) = bench.state_scales(params.solver.rtol);
+        let colouring = probe_colouring(&bench, &scales);
         Ok(Simulation {
             tolerances: Tolerances {
                 rtol: params.solver.rtol,
@@ -352,7 +339,9 @@ impl Simulation {
                 x,
                 inputs,
                 step: None,
+                integrator: Memory::default(),
             },
+            workspace: Some(Workspace::new(colouring).autonomous()),
             bench,
             stats: SolverStats::default(),
         })
@@ -388,8 +377,12 @@ impl Simulation {
         let mut x = self.state.x.clone();
         let bench = &self.bench;
         let mut step = self.state.step;
-        solver::integrate_from(
-            |_t, x, dx| {
+        let mut memory = self.state.integrator.clone();
+        // the composition's exact Jacobian (component::Composition, checked against
+        // differences in model/tests/jacobians.rs) for the Newton matrices
+        let jacobian = |_t: f64, x: &[f64], jac: &mut [f64]| bench.jacobian(x, &inputs, jac);
+        solver::advance(
+            &|_t, x: &[f64], dx: &mut [f64]| {
                 bench.derivatives(x, &inputs, dx);
             },
             &mut x,
@@ -398,11 +391,17 @@ impl Simulation {
             &self.tolerances,
             &self.scales,
             &mut self.stats,
-            &mut step,
+            Carry {
+                step: &mut step,
+                memory: &mut memory,
+                workspace: &mut self.workspace,
+                jacobian: Some(&jacobian),
+            },
         )?;
         self.state.x = x;
         self.state.t = t;
         self.state.step = step;
+        self.state.integrator = memory;
         Ok(())
     }
 
@@ -436,7 +435,42 @@ impl Simulation {
         if state.step.is_some_and(|h| !(h.is_finite() && h > 0.0)) {
             return Err(format!("state holds an invalid step size {:?}", state.step));
         }
+        state.integrator.validate(state.x.len())?;
         self.state = state;
         Ok(())
     }
+}
+
+/// Probes of the bench's sparsity pattern, at rest states under random commands and
+/// forces with every state moved by up to half its scale: enough to see each coupling
+/// on either side of the valves' null and of the pressure drops' signs. A fixed seed
+/// keeps the colouring, hence the results, the same from run to run.
+const PATTERN_PROBES: usize = 8;
+
+/// The colouring of the bench's finite-difference Jacobian (see `solver::jacobian`).
+pub fn probe_colouring(bench: &Bench, scales: &[f64]) -> Colouring {
+    use rand::{Rng, SeedableRng};
+    let n = bench.n_states();
+    let mut rng = rand_pcg::Pcg64::seed_from_u64(13);
+    let mut pattern = Pattern::diagonal(n);
+    let p = &bench.params;
+    for _ in 0..PATTERN_PROBES {
+        let inputs = Inputs {
+            u1: rng.random_range(-10.0..10.0),
+            u2: rng.random_range(-10.0..10.0),
+            f_ext: rng.random_range(-1e3..1e3),
+        };
+        let mut x = bench.initial_state(p.initial_position, &inputs);
+        for (xi, s) in x.iter_mut().zip(scales) {
+            *xi += 0.5 * s * rng.random_range(-1.0..1.0);
+        }
+        pattern.probe(
+            &|_t, x: &[f64], dx: &mut [f64]| {
+                bench.derivatives(x, &inputs, dx);
+            },
+            &x,
+            scales,
+        );
+    }
+    Colouring::greedy(&pattern)
 }

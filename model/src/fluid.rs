@@ -100,6 +100,22 @@ impl FluidParams {
         1.0 / (1.0 / self.bulk_modulus + gas_ratio / p)
     }
 
+    /// d/dp of [`Self::effective_bulk_modulus`] (Pa/Pa): the air compressed away
+    /// stiffens the mixture; zero without air and below the pressure floor, where the
+    /// modulus is held.
+    pub fn effective_bulk_modulus_slope(&self, p: f64, with_air: bool) -> f64 {
+        if !with_air || p < AIR_MODEL_PRESSURE_FLOOR {
+            return 0.0;
+        }
+        let gas = self.air_fraction * ATMOSPHERIC_PRESSURE / p;
+        let liquid = 1.0 - self.air_fraction;
+        let gas_ratio = gas / (gas + liquid);
+        // beta = 1/(1/beta_l + r/p): d beta/dp = -beta^2 d(r/p)/dp, r' = g' c/(g+c)^2
+        let d_gas_ratio = -gas / p * liquid / ((gas + liquid) * (gas + liquid));
+        let beta = 1.0 / (1.0 / self.bulk_modulus + gas_ratio / p);
+        -beta * beta * (d_gas_ratio / p - gas_ratio / (p * p))
+    }
+
     /// (A.16) kinematic viscosity (m2/s) at temperature t (K, t > 0)
     pub fn kinematic_viscosity(&self, t: f64) -> f64 {
         // (A.16) log10(log10(nu + a1)) = a2 log10(T) + a3, nu in cSt
@@ -131,6 +147,68 @@ impl FluidParams {
             * (1.0 + (p - ATMOSPHERIC_PRESSURE) / self.bulk_modulus
                 - self.expansion_coefficient * (t - self.reference_temperature))
     }
+}
+
+/// Absolute pressure at which the oil releases gas and vapour (Pa). Chamber pressures
+/// cannot fall below it: the mixture turns infinitely compliant there.
+pub const CAVITATION_PRESSURE: f64 = 0.05e5;
+
+/// Width of the band above the cavitation pressure over which the stiffness of the
+/// oil fades to zero (Pa): a smooth clamp, so the integrator sees no kink.
+pub const CAVITATION_BAND: f64 = 0.5e5;
+
+/// Factor applied to the bulk modulus near cavitation: 1 above the band, fading to 0 at
+/// the cavitation pressure, 0 below. dP/dt = factor*beta/V*sum(Q) then cannot carry the
+/// pressure below the floor, whatever the flows: the documented clamp of the state.
+pub fn cavitation_factor(p: f64) -> f64 {
+    let s = ((p - CAVITATION_PRESSURE) / CAVITATION_BAND).clamp(0.0, 1.0);
+    s * s * (3.0 - 2.0 * s) // smoothstep: C1 at both ends of the band
+}
+
+/// Effective bulk modulus of the oil at absolute pressure p, with entrained air when
+/// `air` and with the cavitation clamp: the stiffness every volume of the bench uses.
+pub fn oil_stiffness(fluid: &FluidParams, air: bool, p: f64) -> f64 {
+    fluid.effective_bulk_modulus(p, air) * cavitation_factor(p)
+}
+
+impl FluidParams {
+    /// The fluid as the model uses it: at the reference temperature unless the
+    /// temperature effect is on (`temperature`); [`crate::params::Params::fluid_in_use`]
+    /// reads the switch.
+    pub fn in_use(&self, temperature: bool) -> FluidParams {
+        let mut fluid = *self;
+        if !temperature {
+            fluid.temperature = fluid.reference_temperature;
+        }
+        fluid
+    }
+}
+
+/// Orifice law with a laminar core: sign(dp)*sqrt(|dp|) away from zero, linear within
+/// about `dp_transition` of it, so the flow and its derivative stay finite at dp = 0
+/// (a sharp square root would give the stiff solver an infinite Jacobian at null).
+pub fn signed_sqrt(dp: f64, dp_transition: f64) -> f64 {
+    dp / (dp * dp + dp_transition * dp_transition).sqrt().sqrt()
+}
+
+/// Derivative of the orifice law [`signed_sqrt`] with respect to the pressure drop:
+/// (dp^2/2 + t^2) / (dp^2 + t^2)^(5/4).
+pub fn signed_sqrt_slope(dp: f64, dp_transition: f64) -> f64 {
+    let r = dp * dp + dp_transition * dp_transition;
+    (0.5 * dp * dp + dp_transition * dp_transition) / (r * r.sqrt().sqrt())
+}
+
+/// Derivative of [`oil_stiffness`] with respect to the pressure: the entrained air's
+/// stiffening (A.9)-(A.12) and the cavitation clamp's smoothstep.
+pub fn oil_stiffness_slope(fluid: &FluidParams, air: bool, p: f64) -> f64 {
+    let s = (p - CAVITATION_PRESSURE) / CAVITATION_BAND;
+    let d_clamp = if s > 0.0 && s < 1.0 {
+        6.0 * s * (1.0 - s) / CAVITATION_BAND
+    } else {
+        0.0
+    };
+    fluid.effective_bulk_modulus_slope(p, air) * cavitation_factor(p)
+        + fluid.effective_bulk_modulus(p, air) * d_clamp
 }
 
 #[cfg(test)]
@@ -263,5 +341,17 @@ mod tests {
         assert_eq!(toml::from_str::<FluidParams>(&text).unwrap(), f);
         let bad = format!("{text}viscosity = 46.0\n");
         assert!(toml::from_str::<FluidParams>(&bad).is_err());
+    }
+
+    #[test]
+    fn signed_sqrt_is_odd_smooth_and_turbulent_far_from_zero() {
+        let t = 1e4;
+        assert_eq!(signed_sqrt(0.0, t), 0.0);
+        assert!((signed_sqrt(-5e6, t) + signed_sqrt(5e6, t)).abs() < 1e-12);
+        assert!((signed_sqrt(100e5, t) / (100e5f64).sqrt() - 1.0).abs() < 1e-6);
+        // finite slope at zero: 1/sqrt(t)
+        let h = 1e-3;
+        let slope = (signed_sqrt(h, t) - signed_sqrt(-h, t)) / (2.0 * h);
+        assert!((slope * t.sqrt() - 1.0).abs() < 1e-6);
     }
 }

@@ -231,6 +231,58 @@ pub fn dry_friction(p: &FrictionParams, v: f64, accelerating: bool) -> f64 {
     }
 }
 
+/// d/dv of [`dry_friction`] (N/(m/s)) on the branch `accelerating` selects, the
+/// derivative of the region the velocity lies in (the right one at a region boundary).
+pub fn dry_friction_slope(p: &FrictionParams, v: f64, accelerating: bool) -> f64 {
+    match p.law {
+        FrictionLaw::Simplified => {
+            // (4.13) F = (F_C + (F_sdyn - F_C) e^(-C|x|)) tanh(x), x = v/v0
+            let x = v / p.stribeck_velocity;
+            let decay = (-p.stribeck_shape * x.abs()).exp();
+            let level = p.coulomb + (p.static_peak - p.coulomb) * decay;
+            let d_level = -(p.static_peak - p.coulomb) * p.stribeck_shape * x.signum() * decay;
+            let t = x.tanh();
+            (d_level * t + level * (1.0 - t * t)) / p.stribeck_velocity
+        }
+        // F(v) = sign(v) F+(|v|): F'(v) = F+'(|v|)
+        FrictionLaw::Sidhom => sidhom_positive_slope(p, v.abs(), accelerating),
+    }
+}
+
+/// d/ds of [`sidhom_positive`].
+fn sidhom_positive_slope(p: &FrictionParams, s: f64, accelerating: bool) -> f64 {
+    if s < p.linear_velocity {
+        p.static_peak / p.linear_velocity
+    } else if s < p.sdyn_velocity {
+        stribeck_decay(p, s, accelerating).1
+    } else if s < p.viscous_velocity {
+        p.mixed_slope
+    } else {
+        0.0
+    }
+}
+
+/// The Stribeck decay (4.10) on [v0+, v_sdyn+] and its slope, at speed `s`.
+fn stribeck_decay(p: &FrictionParams, s: f64, accelerating: bool) -> (f64, f64) {
+    let f_c2 = p.coulomb;
+    let f_ci = if accelerating {
+        f_c2 + p.hysteresis
+    } else {
+        f_c2
+    };
+    // (4.10); the printed C1+ is negative, hence the minus sign on the stored magnitude.
+    let decay = |v: f64| (-p.decay_rate * (v - p.linear_velocity)).exp();
+    let printed = |v: f64| f_ci + (p.static_peak - f_ci) * decay(v);
+    // Closes the loop onto (4.11)'s F_C2 at v_sdyn+ without moving the (4.9) join.
+    let gap_at_end = printed(p.sdyn_velocity) - f_c2;
+    let span = p.sdyn_velocity - p.linear_velocity;
+    let u = (s - p.linear_velocity) / span;
+    (
+        printed(s) - gap_at_end * u,
+        -p.decay_rate * (p.static_peak - f_ci) * decay(s) - gap_at_end / span,
+    )
+}
+
 /// Viscous friction b*v (hydrodynamic regime, 400 N/(m/s) in the thesis's section 4.4):
 /// the `F_viscous = b v` of assumption 3 (line 5481), added to [`dry_friction`] by the caller.
 pub fn viscous_friction(b: f64, v: f64) -> f64 {
@@ -250,19 +302,7 @@ fn sidhom_positive(p: &FrictionParams, s: f64, accelerating: bool) -> f64 {
         // (4.9), K+ fixed by continuity with (4.10) at v0+.
         p.static_peak / p.linear_velocity * s
     } else if s < p.sdyn_velocity {
-        let f_ci = if accelerating {
-            f_c2 + p.hysteresis
-        } else {
-            f_c2
-        };
-        // (4.10); the printed C1+ is negative, hence the minus sign on the stored magnitude.
-        let printed = |v: f64| {
-            f_ci + (p.static_peak - f_ci) * (-p.decay_rate * (v - p.linear_velocity)).exp()
-        };
-        // Closes the loop onto (4.11)'s F_C2 at v_sdyn+ without moving the (4.9) join.
-        let gap_at_end = printed(p.sdyn_velocity) - f_c2;
-        let u = (s - p.linear_velocity) / (p.sdyn_velocity - p.linear_velocity);
-        printed(s) - gap_at_end * u
+        stribeck_decay(p, s, accelerating).0
     } else {
         // (4.11) up to v_max~; beyond it (4.12) is purely viscous, i.e. the caller's b v,
         // so the dry part keeps its v_max~ value.

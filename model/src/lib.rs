@@ -6,11 +6,12 @@
 
 pub mod actuator;
 pub mod bench;
-pub mod bounds;
+pub mod component;
 pub mod control;
 pub mod effects;
 pub mod fluid;
 pub mod friction;
+pub mod jacobian;
 pub mod manifold;
 pub mod params;
 pub mod sensors;

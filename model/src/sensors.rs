@@ -493,6 +493,15 @@ mod tests {
     }
 }
 
+/// What the controller receives at a sample: the sensed position and chamber pressures
+/// (m, Pa). `control` builds it from the bench's outputs (`Measurement::of`).
+#[derive(Debug, Clone, Copy, PartialEq, Default, Serialize, Deserialize)]
+pub struct Measurement {
+    pub y: f64,
+    pub p1: f64,
+    pub p2: f64,
+}
+
 /// The acquisition delay (effect `sensor_delay`): what a sample taken at t reads is the
 /// physical signal at t - delay, interpolated linearly between recorded instants. Record
 /// the instant [`DelayLine::read_instant_within`] names and the read is exact in time.
@@ -500,12 +509,12 @@ mod tests {
 pub struct DelayLine {
     delay: f64,
     /// (time, signals), in time order.
-    history: Vec<(f64, crate::control::Measurement)>,
+    history: Vec<(f64, Measurement)>,
 }
 
 impl DelayLine {
     /// A line holding `m` since `t0` (before its start the signal is held).
-    pub fn new(delay: f64, t0: f64, m: crate::control::Measurement) -> Self {
+    pub fn new(delay: f64, t0: f64, m: Measurement) -> Self {
         DelayLine {
             delay: delay.max(0.0),
             history: vec![(t0, m)],
@@ -517,7 +526,7 @@ impl DelayLine {
     }
 
     /// Record the physical signals at t (t not before the last record).
-    pub fn record(&mut self, t: f64, m: crate::control::Measurement) {
+    pub fn record(&mut self, t: f64, m: Measurement) {
         match self.history.last_mut() {
             Some(last) if last.0 == t => last.1 = m,
             _ => self.history.push((t, m)),
@@ -532,7 +541,7 @@ impl DelayLine {
     }
 
     /// The sample taken at t.
-    pub fn read(&self, t: f64) -> crate::control::Measurement {
+    pub fn read(&self, t: f64) -> Measurement {
         let t = t - self.delay;
         let h = &self.history;
         let i = h.partition_point(|(ti, _)| *ti <= t);
@@ -545,7 +554,7 @@ impl DelayLine {
         let ((ta, a), (tb, b)) = (h[i - 1], h[i]);
         let w = (t - ta) / (tb - ta);
         let lerp = |x: f64, y: f64| x + w * (y - x);
-        crate::control::Measurement {
+        Measurement {
             y: lerp(a.y, b.y),
             p1: lerp(a.p1, b.p1),
             p2: lerp(a.p2, b.p2),

@@ -221,6 +221,7 @@ impl Model for BenchFmu {
                 x: vec![],
                 inputs: self.inputs,
                 step: None,
+                integrator: Default::default(),
             },
         };
         (self.params.clone(), state, self.sensed.clone())

@@ -3,6 +3,7 @@
 pub mod actuator;
 pub mod bench;
 pub mod closed_loop;
+pub mod component;
 pub mod controller;
 pub mod manifold;
 pub mod reference;
@@ -11,8 +12,9 @@ pub mod servovalve;
 use std::path::{Path, PathBuf};
 use std::sync::{Mutex, OnceLock};
 
-use hbmodel::effects::{Effect, ParamSpec, PARAMS};
+use hbmodel::effects::Effect;
 use hbmodel::params::ValveModel;
+use hbmodel::params::{ParamSpec, PARAMS};
 use hbmodel::Params;
 
 use crate::instance::{Component, Instance, Logger};
@@ -274,7 +276,7 @@ pub const FIXED_STEP: &str = "solver.fixed_step";
 
 /// The `solver.fixed_step` parameter (see [`FIXED_STEP`]).
 pub fn fixed_step_parameter<M: HasParams + 'static>() -> VarDef<M> {
-    // the registry declares it (effects::PARAMS); the find cannot miss, and the specs are
+    // the registry declares it (params::PARAMS); the find cannot miss, and the specs are
     // built at packaging and first instantiation, inside the ABI's panic guard
     let spec = PARAMS
         .iter()

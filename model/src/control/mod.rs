@@ -26,13 +26,8 @@ pub const SAMPLE_PERIOD: f64 = 1e-3;
 /// Saturation of the servovalve commands (V): the D765's rated input.
 pub const COMMAND_LIMIT: f64 = 10.0;
 
-/// What the controller receives at a sample.
-#[derive(Debug, Clone, Copy, PartialEq, Default, serde::Serialize, serde::Deserialize)]
-pub struct Measurement {
-    pub y: f64,
-    pub p1: f64,
-    pub p2: f64,
-}
+// What the controller receives at a sample: declared with the sensors that deliver it.
+pub use crate::sensors::Measurement;
 
 impl Measurement {
     /// The sensed signals of the bench's outputs.

@@ -1,11 +1,28 @@
 //! The servovalve interface shared by every valve model of the bench.
 //!
 //! A valve is a restriction: it takes the command and the pressures at its four ports
-//! and returns the flows at A and B (DESIGN.md, port causality). Models with internal
+//! and returns the flows at A and B (ARCHITECTURE.md, port causality). Models with internal
 //! dynamics own a slice of the bench state vector; static models own none.
 
 pub mod reduced;
 pub mod two_stage;
+
+// The orifice law every restriction of the bench uses, declared with the oil.
+pub use crate::fluid::signed_sqrt;
+
+/// The port layout of a valve's Jacobian, and of the valve as a component
+/// (`crate::component::valve`): inputs, then outputs.
+pub mod port {
+    pub const U: usize = 0;
+    pub const P_S: usize = 1;
+    pub const P_T: usize = 2;
+    pub const P_A: usize = 3;
+    pub const P_B: usize = 4;
+    pub const Q_A: usize = 0;
+    pub const Q_B: usize = 1;
+    pub const Q_S: usize = 2;
+    pub const X_S: usize = 3;
+}
 
 /// Absolute pressures at the four ports (Pa).
 #[derive(Debug, Clone, Copy, PartialEq)]
@@ -47,6 +64,19 @@ pub trait Servovalve: std::fmt::Debug + Send + Sync {
     fn spool_position(&self, command: f64, x: &[f64]) -> f64;
     /// Port flows for the current spool state and port pressures.
     fn flows(&self, command: f64, x: &[f64], p: &PortPressures) -> PortFlows;
+    /// Names of the owned states, as the FMUs and the solver's messages show them.
+    fn state_names(&self) -> &'static [&'static str];
+    /// SI units of the owned states.
+    fn state_units(&self) -> &'static [&'static str];
+    /// Exact Jacobian of `derivatives_at`, `flows` and `spool_position` in the port
+    /// layout of [`crate::component::valve`], into a cleared `jac`.
+    fn jacobian(
+        &self,
+        command: f64,
+        x: &[f64],
+        p: &PortPressures,
+        jac: &mut crate::jacobian::Jacobian,
+    );
 }
 
 /// The valve model a parameter set asks for, for one valve's parameters `vp`: the
@@ -54,7 +84,7 @@ pub trait Servovalve: std::fmt::Debug + Send + Sync {
 pub fn build(vp: &crate::params::ValveParams, p: &crate::params::Params) -> Box<dyn Servovalve> {
     use crate::effects::Effect;
     // (A.14)-(A.16): laminar conductances scale with 1/mu
-    let mu_ratio = crate::actuator::fluid_in_use(p).viscosity_ratio();
+    let mu_ratio = p.fluid_in_use().viscosity_ratio();
     match vp.model {
         crate::params::ValveModel::Reduced => Box::new(reduced::ReducedServovalve::new(
             vp,
@@ -63,31 +93,7 @@ pub fn build(vp: &crate::params::ValveParams, p: &crate::params::Params) -> Box<
             1.0 / mu_ratio,
         )),
         // always with its spool dynamics and its land leakage, which is part of the
-        // identified flow model (2.26)-(2.31): see two_stage.rs
+        // identified flow model (2.26)-(2.31): see two_stage/
         crate::params::ValveModel::TwoStage => Box::new(two_stage::TwoStageServovalve::new(vp, p)),
-    }
-}
-
-/// Orifice law with a laminar core: sign(dp)*sqrt(|dp|) away from zero, linear within
-/// about `dp_transition` of it, so the flow and its derivative stay finite at dp = 0
-/// (a sharp square root would give the stiff solver an infinite Jacobian at null).
-pub fn signed_sqrt(dp: f64, dp_transition: f64) -> f64 {
-    dp / (dp * dp + dp_transition * dp_transition).sqrt().sqrt()
-}
-
-#[cfg(test)]
-mod tests {
-    use super::*;
-
-    #[test]
-    fn signed_sqrt_is_odd_smooth_and_turbulent_far_from_zero() {
-        let t = 1e4;
-        assert_eq!(signed_sqrt(0.0, t), 0.0);
-        assert!((signed_sqrt(-5e6, t) + signed_sqrt(5e6, t)).abs() < 1e-12);
-        assert!((signed_sqrt(100e5, t) / (100e5f64).sqrt() - 1.0).abs() < 1e-6);
-        // finite slope at zero: 1/sqrt(t)
-        let h = 1e-3;
-        let slope = (signed_sqrt(h, t) - signed_sqrt(-h, t)) / (2.0 * h);
-        assert!((slope * t.sqrt() - 1.0).abs() < 1e-6);
     }
 }

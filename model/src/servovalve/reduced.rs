@@ -12,8 +12,15 @@
 //! simulation was ("the system responds faster in simulation than in experiment",
 //! blamed on torque-motor hysteresis); the (II.2) reading gives 0.072/0.035/0.072 s,
 //! slower than the bench. The physical (catalogue) reading is the default.
+//!
+//! The identified defaults of this model (null leakage and width, spool dynamics) are
+//! declared with the valve's parameters in `params::valve`, where the parameter tree's
+//! defaults are built from them.
 
+use super::port::{P_A, P_B, P_S, P_T, Q_A, Q_B, Q_S, U, X_S};
 use super::{signed_sqrt, PortFlows, PortPressures, Servovalve};
+use crate::fluid::signed_sqrt_slope;
+use crate::jacobian::Jacobian;
 use crate::params::{ValveParams, BAR};
 
 /// Spool travel at rated command (m). The thesis prints no spool geometry; a land of a
@@ -31,36 +38,6 @@ pub const LAND_LAMINAR_TRANSITION: f64 = 0.5 * BAR;
 /// 5 % of the 0.4 mm stroke, of which the first tenth acts): it gives the turbulent flow a
 /// continuous derivative at the edge, so only the laminar leakage sets the null.
 pub const EDGE_ROUNDING: f64 = 0.005;
-
-/// Total leakage of the four lands at null per unit supply-to-tank pressure (m3/s/Pa).
-/// The leakage curve of Fig. 2.10(a) peaks at null between 1.5 and 2 L/min (its axis tops
-/// at 2 L/min) with 213 bar across the valve; 1.7 L/min is taken. It is also the valve's
-/// flow-pressure coefficient at null, the main damping of the loop around null.
-pub const NULL_LEAKAGE: f64 = 1.7e-3 / 60.0 / (213.0 * BAR);
-
-/// Spool travel (fraction of rated) over which the null leakage passes from one land to
-/// the other. With ports blocked it sets the pressure gain, d(PA-PB)/dx = (Ps-PT)/width;
-/// 0.0258 gives the 827 bar/V of Fig. 2.10(b) (213 bar over 0.258 V of spool position).
-pub const NULL_WIDTH: f64 = 0.0258;
-
-/// Second-order spool dynamics of the reduced valve.
-#[derive(Debug, Clone, Copy, PartialEq)]
-pub struct SpoolDynamics {
-    pub natural_frequency: f64,
-    pub damping: f64,
-    pub max_spool_rate: f64,
-}
-
-/// Values found by a grid search (examples/tune_valve.rs) and checked by
-/// `tests::bandwidths_match_the_manufacturer`, so that the -3 dB
-/// frequencies with ports blocked are 310 Hz at 40 % and 160 Hz at 90 % input: the linear
-/// part sets the small-signal bandwidth, the rate limit (the pilot stage's flow
-/// saturation) brings it down at large amplitude.
-pub const TUNED_DYNAMICS: SpoolDynamics = SpoolDynamics {
-    natural_frequency: 2.0 * std::f64::consts::PI * 440.0,
-    damping: 0.6,
-    max_spool_rate: 520.0,
-};
 
 #[derive(Debug, Clone)]
 pub struct ReducedServovalve {
@@ -111,6 +88,43 @@ impl ReducedServovalve {
         let fade = (-edge_opening(x) / self.p.null_width).exp();
         let leak = 2.0 * self.null_leakage * logistic(2.0 * x / self.p.null_width) * fade * dp;
         metered + leak
+    }
+}
+
+impl ReducedServovalve {
+    /// Derivatives of [`Self::land_flow`] with respect to the opening and the drop.
+    fn land_flow_slopes(&self, x: f64, dp: f64) -> (f64, f64) {
+        let t = LAND_LAMINAR_TRANSITION;
+        let (e, de) = (edge_opening(x), edge_opening_slope(x));
+        let w = self.p.null_width;
+        let fade = (-e / w).exp();
+        let sig = logistic(2.0 * x / w);
+        let d_sig = sig * (1.0 - sig) * 2.0 / w;
+        let leak = 2.0 * self.null_leakage;
+        let d_x = self.land_coefficient * de * signed_sqrt(dp, t)
+            + leak * dp * fade * (d_sig - sig * de / w);
+        let d_dp = self.land_coefficient * e * signed_sqrt_slope(dp, t) + leak * sig * fade;
+        (d_x, d_dp)
+    }
+
+    /// d(opening)/d(command) of the static opening: the branch the clamp takes.
+    fn demanded_opening_slope(&self, command: f64) -> f64 {
+        let s = (command - self.p.null_bias) / self.p.rated_command;
+        if s.abs() < 1.0 {
+            1.0 / self.p.rated_command
+        } else {
+            0.0
+        }
+    }
+}
+
+fn edge_opening_slope(x: f64) -> f64 {
+    if x <= 0.0 {
+        0.0
+    } else if x < EDGE_ROUNDING {
+        x / EDGE_ROUNDING
+    } else {
+        1.0
     }
 }
 
@@ -166,6 +180,63 @@ impl Servovalve for ReducedServovalve {
 
     fn spool_position(&self, command: f64, x: &[f64]) -> f64 {
         self.opening(command, x) * RATED_SPOOL_STROKE
+    }
+
+    fn state_names(&self) -> &'static [&'static str] {
+        if self.dynamics {
+            &["spool", "spool_rate"]
+        } else {
+            &[]
+        }
+    }
+
+    fn state_units(&self) -> &'static [&'static str] {
+        if self.dynamics {
+            &["1", "1/s"]
+        } else {
+            &[]
+        }
+    }
+
+    fn jacobian(&self, command: f64, x: &[f64], p: &PortPressures, jac: &mut Jacobian) {
+        let s = self.opening(command, x);
+        // where the opening comes from: the spool state, or the command directly
+        let d_open = |jac: &mut Jacobian, out: usize, d: f64| {
+            if self.dynamics {
+                *jac.yx(out, 0) += d;
+            } else {
+                *jac.yu(out, U) += d * self.demanded_opening_slope(command);
+            }
+        };
+        let (pa_x, pa_dp) = self.land_flow_slopes(s, p.supply - p.a);
+        let (at_x, at_dp) = self.land_flow_slopes(-s, p.a - p.tank);
+        let (pb_x, pb_dp) = self.land_flow_slopes(-s, p.supply - p.b);
+        let (bt_x, bt_dp) = self.land_flow_slopes(s, p.b - p.tank);
+        // Q_A = q(s, Ps - Pa) - q(-s, Pa - Pt)
+        d_open(jac, Q_A, pa_x + at_x);
+        *jac.yu(Q_A, P_S) = pa_dp;
+        *jac.yu(Q_A, P_A) = -pa_dp - at_dp;
+        *jac.yu(Q_A, P_T) = at_dp;
+        // Q_B = q(-s, Ps - Pb) - q(s, Pb - Pt)
+        d_open(jac, Q_B, -pb_x - bt_x);
+        *jac.yu(Q_B, P_S) = pb_dp;
+        *jac.yu(Q_B, P_B) = -pb_dp - bt_dp;
+        *jac.yu(Q_B, P_T) = bt_dp;
+        // Q_P = q(s, Ps - Pa) + q(-s, Ps - Pb)
+        d_open(jac, Q_S, pa_x - pb_x);
+        *jac.yu(Q_S, P_S) = pa_dp + pb_dp;
+        *jac.yu(Q_S, P_A) = -pa_dp;
+        *jac.yu(Q_S, P_B) = -pb_dp;
+        d_open(jac, X_S, RATED_SPOOL_STROKE);
+        if self.dynamics {
+            let r = self.p.max_spool_rate;
+            let wn = self.p.natural_frequency;
+            let t = (x[1] / r).tanh();
+            *jac.fx(0, 1) = 1.0 - t * t;
+            *jac.fx(1, 0) = -wn * wn;
+            *jac.fx(1, 1) = -2.0 * self.p.damping * wn;
+            *jac.fu(1, U) = wn * wn * self.demanded_opening_slope(command);
+        }
     }
 
     fn flows(&self, command: f64, x: &[f64], p: &PortPressures) -> PortFlows {

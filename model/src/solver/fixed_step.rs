@@ -18,6 +18,7 @@
 
 use nalgebra::{DMatrix, DVector};
 
+use super::jacobian::Colouring;
 use super::{SolverError, SolverStats, Tolerances, FD_EPS};
 
 /// Fraction of a step by which an interval may exceed a whole number of steps and still
@@ -60,11 +61,32 @@ pub fn integrate<F>(
 where
     F: Fn(f64, &[f64], &mut [f64]),
 {
+    integrate_coloured(f, x, t0, t1, h, tol, scale, stats, None)
+}
+
+/// [`integrate`] with the Jacobian by coloured differences when `colouring` is given
+/// (the model's sparsity, `solver::jacobian`): one right-hand side per colour instead of
+/// one per state, the same Jacobian entries.
+#[allow(clippy::too_many_arguments)]
+pub fn integrate_coloured<F>(
+    f: &F,
+    x: &mut [f64],
+    t0: f64,
+    t1: f64,
+    h: f64,
+    tol: &Tolerances,
+    scale: &[f64],
+    stats: &mut SolverStats,
+    colouring: Option<&Colouring>,
+) -> Result<(), SolverError>
+where
+    F: Fn(f64, &[f64], &mut [f64]),
+{
     let n = x.len();
     let span = t1 - t0;
     // a rounding error over the ratio must not add a step of a few ulps
     let steps = (span / h - STEP_ROUNDING).ceil().max(1.0);
-    if !(steps <= MAX_STEPS_PER_INTERVAL) {
+    if steps.is_nan() || steps > MAX_STEPS_PER_INTERVAL {
         return Err(SolverError::Failed {
             t: t0,
             message: format!(
@@ -77,6 +99,7 @@ where
     let steps = steps as usize;
     let dt = span / steps as f64;
     let mut w = Work::new(n);
+    w.colouring = colouring;
     for k in 0..steps {
         // time relative to the interval's start, so a result never depends on t0
         let t = t0 + k as f64 * dt;
@@ -104,7 +127,10 @@ where
 }
 
 /// Buffers of one interval, and the factorised Newton matrix.
-struct Work {
+struct Work<'c> {
+    colouring: Option<&'c Colouring>,
+    /// Row-major Jacobian the colouring fills.
+    coloured: Vec<f64>,
     lu: Option<nalgebra::LU<f64, nalgebra::Dyn, nalgebra::Dyn>>,
     jac: DMatrix<f64>,
     base: Vec<f64>,
@@ -115,9 +141,11 @@ struct Work {
     residual: DVector<f64>,
 }
 
-impl Work {
-    fn new(n: usize) -> Work {
+impl<'c> Work<'c> {
+    fn new(n: usize) -> Work<'c> {
         Work {
+            colouring: None,
+            coloured: Vec::new(),
             lu: None,
             jac: DMatrix::zeros(n, n),
             base: vec![0.0; n],
@@ -144,17 +172,37 @@ impl Work {
     {
         let n = x.len();
         f(t, x, &mut self.fy);
-        self.shifted.copy_from_slice(x);
-        for j in 0..n {
-            let d = FD_EPS * x[j].abs().max(scale[j]);
-            self.shifted[j] = x[j] + d;
-            f(t, &self.shifted, &mut self.k1);
-            self.shifted[j] = x[j];
+        if let Some(c) = self.colouring {
+            self.coloured.resize(n * n, 0.0);
+            let calls = c.finite_differences(
+                f,
+                t,
+                x,
+                &self.fy,
+                scale,
+                &mut self.coloured,
+                &mut self.shifted,
+                &mut self.k1,
+            );
             for i in 0..n {
-                self.jac[(i, j)] = (self.k1[i] - self.fy[i]) / d;
+                for j in 0..n {
+                    self.jac[(i, j)] = self.coloured[i * n + j];
+                }
             }
+            stats.rhs_evaluations += calls + 1;
+        } else {
+            self.shifted.copy_from_slice(x);
+            for j in 0..n {
+                let d = FD_EPS * x[j].abs().max(scale[j]);
+                self.shifted[j] = x[j] + d;
+                f(t, &self.shifted, &mut self.k1);
+                self.shifted[j] = x[j];
+                for i in 0..n {
+                    self.jac[(i, j)] = (self.k1[i] - self.fy[i]) / d;
+                }
+            }
+            stats.rhs_evaluations += n + 1;
         }
-        stats.rhs_evaluations += n + 1;
         stats.jacobian_evaluations += 1;
         let mut m = &self.jac * (-h * GAMMA);
         for i in 0..n {

@@ -1,22 +1,28 @@
-//! Stiff integration with diffsol's ESDIRK34 solver, or the fixed-step real-time method.
+//! Stiff integration: our ESDIRK with a filtered error estimate and carried Jacobian
+//! ([`adaptive`], the default), diffsol's ESDIRK34 and BDF (kept selectable for
+//! side-by-side benchmarks), or the fixed-step real-time method ([`fixed_step`]).
 //!
 //! The bench is stiff: tiny manifold port volumes against servovalve orifices give time
-//! constants of ~10 us, while the piston moves over tens of milliseconds. diffsol's
-//! L-stable ESDIRK34 (one-step, order 3, embedded error estimate) with a dense LU serves
-//! at this size (20-40 states); it replaced the variable-order BDF by measurement (see
-//! `integrate_from`).
+//! constants of ~10 us, while the piston moves over tens of milliseconds. L-stable
+//! one-step methods with a dense LU serve at this size (20-40 states); a one-step method
+//! does not restart at order 1 at every 1 kHz input jump as BDF does.
 //!
 //! The right-hand side is piecewise smooth (sign of a pressure drop, saturations, end
-//! stops), which defeats diffsol's NaN-propagation sparsity guess; we give it a dense
-//! Jacobian by one-sided finite differences with per-state scales instead.
+//! stops), which defeats diffsol's NaN-propagation sparsity guess; we give it a
+//! Jacobian by one-sided finite differences with per-state scales instead, coloured over
+//! a probed sparsity pattern on our own integrator's path ([`jacobian`]).
 //!
-//! One call integrates over one interval with constant inputs, from a fresh solver: the
-//! FMU communication points are where inputs jump, so restarting there is what the
-//! integrator needs anyway, and the complete state stays a plain vector.
+//! One call integrates over one interval with constant inputs. diffsol starts a fresh
+//! solver there; our integrator carries its Jacobian and step in a [`adaptive::Memory`]
+//! that the caller keeps with the state, so a restored state replays bit for bit.
 
 use std::cell::RefCell;
 
+pub mod adaptive;
+pub mod dense_lu;
+mod esdirk_tableau;
 pub mod fixed_step;
+pub mod jacobian;
 
 use diffsol::{
     NalgebraLU, NalgebraMat, OdeBuilder, OdeSolverMethod, OdeSolverState, OdeSolverStopReason,
@@ -30,6 +36,10 @@ pub enum SolverError {
     Failed { t: f64, message: String },
     #[error("the state became non-finite at t = {t} s")]
     NonFinite { t: f64 },
+    /// Our integrator's Newton kept failing with fresh Jacobians
+    /// ([`adaptive::MAX_FRESH_FAILURES`]); [`advance`] retries the interval with diffsol.
+    #[error("Newton stalled at t = {t} s")]
+    Stalled { t: f64 },
     #[error("invalid time interval [{t0}, {t1}]")]
     BadInterval { t0: f64, t1: f64 },
 }
@@ -87,9 +97,10 @@ where
 
 /// [`integrate`], starting with the step size `step` when given, and leaving in it the
 /// step size the solver would take next. A run of short intervals (communication steps)
-/// then keeps its step size from one interval to the next instead of restarting from
-/// diffsol's cold-start estimate each time, which on the bench costs tens of tiny steps
-/// per millisecond.
+/// then keeps its step size from one interval to the next instead of restarting from a
+/// cold-start estimate each time, which on the bench costs tens of tiny steps per
+/// millisecond. Our integrator runs here with a dense finite-difference Jacobian and no
+/// memory beyond the step; [`advance`] carries more.
 #[allow(clippy::too_many_arguments)]
 pub fn integrate_from<F>(
     f: F,
@@ -104,6 +115,42 @@ pub fn integrate_from<F>(
 where
     F: Fn(f64, &[f64], &mut [f64]),
 {
+    let carry = Carry {
+        step,
+        memory: &mut adaptive::Memory::default(),
+        workspace: &mut None,
+        jacobian: None,
+    };
+    advance(&f, x, t0, t1, tol, scale, stats, carry)
+}
+
+/// What a model keeps between intervals for the integrator: the proposed step and the
+/// memory (both part of its state), the workspace (buffers and the LU, derived), and an
+/// exact Jacobian when it has one.
+pub struct Carry<'a, 'j> {
+    pub step: &'a mut Option<f64>,
+    pub memory: &'a mut adaptive::Memory,
+    /// Built on first use with a dense finite-difference Jacobian when None.
+    pub workspace: &'a mut Option<adaptive::Workspace>,
+    pub jacobian: Option<jacobian::ExactJacobian<'j>>,
+}
+
+/// Integrate over [t0, t1] with the method selected ([`adaptive_method`], or the fixed
+/// step when `tol.fixed_step` > 0), carrying `carry` across calls.
+#[allow(clippy::too_many_arguments)]
+pub fn advance<F>(
+    f: &F,
+    x: &mut [f64],
+    t0: f64,
+    t1: f64,
+    tol: &Tolerances,
+    scale: &[f64],
+    stats: &mut SolverStats,
+    carry: Carry,
+) -> Result<(), SolverError>
+where
+    F: Fn(f64, &[f64], &mut [f64]),
+{
     if !t0.is_finite() || !t1.is_finite() || t1 < t0 {
         return Err(SolverError::BadInterval { t0, t1 });
     }
@@ -113,11 +160,23 @@ where
         return Ok(());
     }
     if tol.fixed_step > 0.0 {
-        return fixed_step::integrate(&f, x, t0, t1, tol.fixed_step, tol, scale, stats);
+        let colouring = carry.workspace.as_ref().map(|w| w.colouring());
+        return fixed_step::integrate_coloured(
+            f,
+            x,
+            t0,
+            t1,
+            tol.fixed_step,
+            tol,
+            scale,
+            stats,
+            colouring,
+        );
     }
-    // diffsol refuses any step below its minimum (an fmi2DoStep by 1e-15 s): such an
-    // interval is one explicit Euler step, stable and exact to O(h^2) there since h |lambda|
-    // stays below 1e-6 for the bench's fastest modes (~1e7 1/s, the two-stage valve's pilot)
+    // every method refuses a step below diffsol's minimum (an fmi2DoStep by 1e-15 s):
+    // such an interval is one explicit Euler step, stable and exact to O(h^2) there since
+    // h |lambda| stays below 1e-6 for the bench's fastest modes (~1e7 1/s, the two-stage
+    // valve's pilot)
     if t1 - t0 < DIFFSOL_MIN_STEP {
         let mut dx = vec![0.0; x.len()];
         f(t0, x, &mut dx);
@@ -131,6 +190,59 @@ where
         }
         return Ok(());
     }
+    match adaptive_method() {
+        Method::FilteredEsdirk34 => {
+            let ws = carry.workspace.get_or_insert_with(|| {
+                adaptive::Workspace::new(jacobian::Colouring::dense(x.len()))
+            });
+            let mut y = x.to_vec();
+            let r = adaptive::integrate(
+                f,
+                carry.jacobian,
+                &mut y,
+                t0,
+                t1,
+                tol,
+                scale,
+                carry.step,
+                carry.memory,
+                ws,
+                stats,
+            );
+            match r {
+                Ok(()) => {
+                    x.copy_from_slice(&y);
+                    Ok(())
+                }
+                // the interval again, from its start, with diffsol's ESDIRK34: a
+                // deterministic function of (x, step), so a restored state replays it
+                Err(SolverError::Stalled { .. }) => {
+                    diffsol_integrate(f, Method::Esdirk34, x, t0, t1, tol, scale, stats, carry.step)
+                }
+                // a failure leaves x where it was
+                Err(e) => Err(e),
+            }
+        }
+        m => diffsol_integrate(f, m, x, t0, t1, tol, scale, stats, carry.step),
+    }
+}
+
+/// diffsol's ESDIRK34 or BDF over one interval, from a fresh solver seeded with `step`.
+#[allow(clippy::too_many_arguments)]
+fn diffsol_integrate<F>(
+    f: &F,
+    method: Method,
+    x: &mut [f64],
+    t0: f64,
+    t1: f64,
+    tol: &Tolerances,
+    scale: &[f64],
+    stats: &mut SolverStats,
+    step: &mut Option<f64>,
+) -> Result<(), SolverError>
+where
+    F: Fn(f64, &[f64], &mut [f64]),
+{
     let n = x.len();
     let calls = RefCell::new(0usize);
     let jacobians = RefCell::new(0usize);
@@ -206,7 +318,7 @@ where
     // static / second-order / two-stage valves, BDF 11.5 / 10.4 / 1.56, TR-BDF2
     // 11.4 / 13.5 / 2.80, ESDIRK34 12.4 / 11.7 / 2.93. A one-step method does not restart
     // at order 1 at every interval as BDF does, which is what the 1 kHz input jumps cost.
-    let (y, free_step, last_step, setups) = match adaptive_method() {
+    let (y, free_step, last_step, setups) = match method {
         Method::Esdirk34 => {
             let tableau = Tableau::<f64>::esdirk34();
             let mut state = problem.rk_state(&tableau).map_err(fail)?;
@@ -216,7 +328,7 @@ where
                 .map_err(fail)?;
             drive(solver, t0, t1, stats)?
         }
-        Method::Bdf => {
+        _ => {
             let mut state = problem.bdf_state::<NalgebraLU<f64>>().map_err(fail)?;
             seed(state.as_mut().h);
             let solver = problem.bdf_solver::<NalgebraLU<f64>>(state).map_err(fail)?;
@@ -234,28 +346,29 @@ where
     Ok(())
 }
 
-/// The adaptive method. ESDIRK34 is the one in use; BDF, the one before it, stays
-/// selectable so that `hbench bench` can time both side by side in one run.
+/// The adaptive method. Ours ([`adaptive`]) is the default; diffsol's ESDIRK34 (the one
+/// before it) and BDF (the one before that) stay selectable so that `hbench bench` can
+/// time them side by side in one run.
 #[derive(Debug, Clone, Copy, PartialEq, Eq)]
 pub enum Method {
+    FilteredEsdirk34,
     Esdirk34,
     Bdf,
 }
 
-static BDF_SELECTED: std::sync::atomic::AtomicBool = std::sync::atomic::AtomicBool::new(false);
+thread_local! {
+    static SELECTED: std::cell::Cell<Method> = const { std::cell::Cell::new(Method::FilteredEsdirk34) };
+}
 
-/// Select the adaptive method for every later integration in this process (a benchmark
-/// switch: the models never call it).
+/// Select the adaptive method for every later integration on this thread (a benchmark
+/// switch: the models never call it; per thread, so tests comparing methods side by side
+/// do not race).
 pub fn set_adaptive_method(m: Method) {
-    BDF_SELECTED.store(m == Method::Bdf, std::sync::atomic::Ordering::Relaxed);
+    SELECTED.with(|s| s.set(m));
 }
 
 pub fn adaptive_method() -> Method {
-    if BDF_SELECTED.load(std::sync::atomic::Ordering::Relaxed) {
-        Method::Bdf
-    } else {
-        Method::Esdirk34
-    }
+    SELECTED.with(|s| s.get())
 }
 
 /// Step `solver` to `t1`; the state there, the last step it chose freely (the one that

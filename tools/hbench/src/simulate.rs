@@ -10,7 +10,8 @@ use std::path::{Path, PathBuf};
 use hbmodel::control::config::LawKind;
 use hbmodel::control::scenario::{self, law_name, Overrides, Run, Scenario, CATALOGUE};
 use hbmodel::control::Sample;
-use hbmodel::effects::{EFFECTS, PARAMS};
+use hbmodel::effects::EFFECTS;
+use hbmodel::params::PARAMS;
 use hbmodel::{Mode, Params};
 use serde_json::{json, Value};
 

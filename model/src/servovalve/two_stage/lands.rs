@@ -122,6 +122,65 @@ impl LandModel {
         g * dp / (1.0 + g * g * dp.abs() / (c * c)).sqrt()
     }
 
+    /// d(opening)/dx.
+    fn opening_slope(&self, x: f64) -> f64 {
+        let (es, dr) = (RADIAL_CLEARANCE, EDGE_DIAMETER);
+        if x >= -dr {
+            (dr + x) / ((es + dr).powi(2) + (dr + x).powi(2)).sqrt()
+        } else {
+            0.0
+        }
+    }
+
+    /// d(laminar_conductance)/dx.
+    fn laminar_conductance_slope(&self, x: f64) -> f64 {
+        let (es, delta, mu, w) = (
+            RADIAL_CLEARANCE,
+            LAMINAR_FLOW_COEFFICIENT,
+            self.viscosity,
+            self.slot_width,
+        );
+        if x >= 0.0 {
+            8.0 * delta * delta * w * self.opening(x) * self.opening_slope(x) / mu
+        } else {
+            let t = (-x / self.lt).tanh();
+            let d_overlap = -1.0 - self.ki / self.lt * (1.0 - t * t);
+            let f = self.equivalent_overlap(x);
+            -w * es.powi(3) * d_overlap / (12.0 * mu * f * f)
+        }
+    }
+
+    /// Derivatives of [`Self::flow`] with respect to the opening and the drop.
+    pub fn flow_slopes(&self, x: f64, dp: f64) -> (f64, f64) {
+        let g = self.laminar_conductance(x);
+        let c = self.turbulent_coefficient(x);
+        let (dg, dc) = (
+            self.laminar_conductance_slope(x),
+            CD_TURBULENT * self.slot_width * self.opening_slope(x) * (2.0 / self.density).sqrt(),
+        );
+        // Q = g dp D^(-1/2), D = 1 + g^2 |dp| / c^2
+        let r = g * g * dp.abs() / (c * c);
+        let d32 = (1.0 + r).powf(-1.5);
+        let dq_dg = dp * d32;
+        let dq_dc = g * dp * r / c * d32;
+        (dq_dg * dg + dq_dc * dc, g * d32 * (1.0 + 0.5 * r))
+    }
+
+    /// Derivatives of [`Self::flow_force`] with respect to the opening and the flow.
+    pub fn flow_force_slopes(&self, x: f64, q: f64) -> (f64, f64) {
+        let d = self.opening(x);
+        let r = d / RADIAL_CLEARANCE;
+        let theta = self.jet.angle(r);
+        let d_theta = self.jet.angle_slope(r) / RADIAL_CLEARANCE;
+        let k = self.density / self.slot_width;
+        // F = k q^2 cos(theta(d)) / d
+        let d_f_dd = k * q * q * (-theta.sin() * d_theta / d - theta.cos() / (d * d));
+        (
+            d_f_dd * self.opening_slope(x),
+            2.0 * k * q * theta.cos() / d,
+        )
+    }
+
     /// Metering area n w_s d_i of the land (m2), A_si of (2.43).
     pub fn area(&self, x: f64) -> f64 {
         self.slot_width * self.opening(x)
@@ -194,26 +253,49 @@ impl JetAngle {
         JetAngle { table }
     }
 
-    /// Jet angle for x_v/C_r = r (r >= 1 here: the opening never falls below e_s).
-    fn angle(&self, r: f64) -> f64 {
+    /// The Hermite segment of x_v/C_r = r: its index k, the position s in it and the
+    /// end slopes; None beyond the table, where the angle is held.
+    fn segment(&self, r: f64) -> Option<(usize, f64, f64, f64)> {
         let u = r.max(1.0).ln() / JET_STEP;
         let n = JET_POINTS - 1;
         if u >= n as f64 {
-            return self.table[n];
+            return None;
         }
         let k = (u.floor() as usize).min(n - 1);
-        let s = u - k as f64;
         let t = &self.table;
         let slope = |j: usize| {
             let (a, b) = (j.saturating_sub(1), (j + 1).min(n));
             (t[b] - t[a]) / (b - a) as f64
         };
-        let (m0, m1) = (slope(k), slope(k + 1));
+        Some((k, u - k as f64, slope(k), slope(k + 1)))
+    }
+
+    /// Jet angle for x_v/C_r = r (r >= 1 here: the opening never falls below e_s).
+    fn angle(&self, r: f64) -> f64 {
+        let t = &self.table;
+        let Some((k, s, m0, m1)) = self.segment(r) else {
+            return t[JET_POINTS - 1];
+        };
         let (s2, s3) = (s * s, s * s * s);
         (2.0 * s3 - 3.0 * s2 + 1.0) * t[k]
             + (s3 - 2.0 * s2 + s) * m0
             + (-2.0 * s3 + 3.0 * s2) * t[k + 1]
             + (s3 - s2) * m1
+    }
+
+    /// d(angle)/dr: the derivative of the Hermite cubic, zero where the angle is held.
+    fn angle_slope(&self, r: f64) -> f64 {
+        let t = &self.table;
+        let Some((k, s, m0, m1)) = self.segment(r).filter(|_| r >= 1.0) else {
+            return 0.0;
+        };
+        let s2 = s * s;
+        let d_ds = (6.0 * s2 - 6.0 * s) * t[k]
+            + (3.0 * s2 - 4.0 * s + 1.0) * m0
+            + (-6.0 * s2 + 6.0 * s) * t[k + 1]
+            + (3.0 * s2 - 2.0 * s) * m1;
+        // u = ln(r) / step
+        d_ds / (JET_STEP * r)
     }
 }
 

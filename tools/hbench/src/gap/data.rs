@@ -143,7 +143,7 @@ pub fn load_experiment(path: &Path) -> Result<Experiment, String> {
         ("tank_pressure", e.tank_pressure),
         ("initial_position", e.initial_position),
     ] {
-        let spec = hbmodel::effects::param(field).expect("registered");
+        let spec = hbmodel::params::param(field).expect("registered");
         if !(v.is_finite() && v >= spec.min && v <= spec.max) {
             return Err(bad(
                 field,

@@ -6,7 +6,8 @@
 //! y, P1 and P2, each divided by its noise level estimated from the data, so that a model
 //! explaining the data leaves residuals of RMS 1 (the noise floor).
 
-use hbmodel::effects::{param, Effect};
+use hbmodel::effects::Effect;
+use hbmodel::params::param;
 use hbmodel::Params;
 use levenberg_marquardt::{LeastSquaresProblem, LevenbergMarquardt};
 use nalgebra::{DMatrix, DVector, Dyn, Owned};

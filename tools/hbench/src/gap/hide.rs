@@ -330,7 +330,7 @@ fn with_hidden(base: &Params, hidden: &[Effect], drawn: &[(&'static str, f64)]) 
         }
     }
     for &(path, v) in drawn {
-        hbmodel::effects::param(path)
+        hbmodel::params::param(path)
             .expect("registered")
             .set(&mut p, v);
     }
@@ -357,7 +357,7 @@ pub fn parse_setting(s: &str) -> Result<(String, f64), String> {
     let (path, value) = s
         .split_once('=')
         .ok_or(format!("expected PATH=VALUE, not '{s}'"))?;
-    let spec = hbmodel::effects::param(path.trim())
+    let spec = hbmodel::params::param(path.trim())
         .ok_or(format!("'{path}' is not a registry parameter"))?;
     let v: f64 = value
         .trim()
@@ -414,7 +414,7 @@ pub fn main(o: &Options) -> Result<(), String> {
     let mut drawn = draw_hidden(&hidden, &mut rng);
     // magnitudes the user fixes replace the drawn ones
     for (path, v) in o.at {
-        let spec = hbmodel::effects::param(path).expect("checked by parse_setting");
+        let spec = hbmodel::params::param(path).expect("checked by parse_setting");
         drawn.retain(|(d, _)| *d != spec.path);
         drawn.push((spec.path, *v));
     }

@@ -11,7 +11,8 @@
 
 use std::collections::BTreeMap;
 
-use hbmodel::effects::{param, Effect};
+use hbmodel::effects::Effect;
+use hbmodel::params::param;
 use hbmodel::Params;
 use rand::{Rng, SeedableRng};
 use rand_pcg::Pcg64;

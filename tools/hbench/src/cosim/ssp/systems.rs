@@ -36,7 +36,7 @@ pub const REFERENCE: &str = "Reference";
 pub const MOVE_START: f64 = 0.02;
 pub const MOVE_STOP: f64 = MOVE_START + THESIS_MOVE_DURATION + 0.08;
 
-/// Port wiring (DESIGN.md, port causality): valves take port pressures and give flows;
+/// Port wiring (ARCHITECTURE.md, port causality): valves take port pressures and give flows;
 /// the manifold takes valve flows and chamber pressures and gives port pressures and
 /// chamber flows; the actuator takes chamber flows and gives pressures and motion. The
 /// same in every mode: the mode only changes what the manifold joins inside (mode 1:

@@ -23,8 +23,14 @@
 //!   global singular-loss coefficient zeta = 7.32 (3.5)-(3.6), used for every passage since
 //!   all are drilled channels with two right-angle junctions like C1-N2.
 
+use crate::fluid::signed_sqrt;
 use crate::params::{Mode, BAR};
-use crate::servovalve::signed_sqrt;
+
+mod lumped;
+#[cfg(test)]
+mod tests;
+
+pub use lumped::{added_volume, equivalent_mass, equivalent_mass_per_area2};
 
 /// A passage family of Fig. 3.2 (the same geometry on both sides of the bench).
 #[derive(Debug, Clone, Copy, PartialEq, Eq)]
@@ -121,6 +127,11 @@ impl Passage {
     pub fn pressure_drop(&self, q: f64) -> f64 {
         self.turbulent * q * q.abs() + self.laminar * q
     }
+
+    /// d(pressure_drop)/dq.
+    pub fn pressure_drop_slope(&self, q: f64) -> f64 {
+        2.0 * self.turbulent * q.abs() + self.laminar
+    }
 }
 
 /// Flow reducer from a node to tank (mode 3).
@@ -133,6 +144,12 @@ pub struct Reducer {
 impl Reducer {
     pub fn flow(&self, p_node: f64, p_tank: f64) -> f64 {
         self.coefficient * signed_sqrt(p_node - p_tank, REDUCER_LAMINAR_TRANSITION)
+    }
+
+    /// d(flow)/d(p_node).
+    pub fn flow_slope(&self, p_node: f64, p_tank: f64) -> f64 {
+        self.coefficient
+            * crate::fluid::signed_sqrt_slope(p_node - p_tank, REDUCER_LAMINAR_TRANSITION)
     }
 }
 
@@ -232,7 +249,7 @@ impl Circuit {
     /// The circuit a parameter set asks for (mode, manifold effects and scales, oil).
     pub fn from_params(p: &crate::params::Params) -> Circuit {
         use crate::effects::Effect;
-        let fluid = crate::actuator::fluid_in_use(p);
+        let fluid = p.fluid_in_use();
         Circuit::new(
             p.mode,
             &ManifoldConfig {
@@ -377,17 +394,13 @@ impl NetworkState<'_> {
 pub const MAX_NODES: usize = 10;
 
 impl Circuit {
-    /// Right-hand side of the network: (3.2) node pressures and (3.3) passage flows, for
-    /// the given valve port flows. `bulk(p)` is the oil's effective bulk modulus. Returns
-    /// the flows delivered into the chambers.
-    pub fn derivatives(
+    /// Flows into the nodes and the chambers for the given valve port flows: the port
+    /// flows, the passage flows (from -> to) and the flow reducers to tank.
+    pub fn inflows(
         &self,
         s: &NetworkState,
         port_flows: &[[f64; 2]; 2],
-        bulk: impl Fn(f64) -> f64,
-        d_nodes: &mut [f64],
-        d_flows: &mut [f64],
-    ) -> [f64; 2] {
+    ) -> ([f64; MAX_NODES], [f64; 2]) {
         let mut q_node = [0.0; MAX_NODES];
         let mut q_ch = [0.0; 2];
         let mut add = |port: Port, q: f64| match port {
@@ -400,218 +413,38 @@ impl Circuit {
                 add(*port, *q);
             }
         }
-        for (k, pass) in self.passages.iter().enumerate() {
-            let q = s.flows[k];
+        for (pass, q) in self.passages.iter().zip(s.flows) {
             add(pass.from, -q);
-            add(pass.to, q);
-            // (3.3) fluid inertia driven by the pressure difference less the losses
-            d_flows[k] = (s.pressure(pass.from) - s.pressure(pass.to) - pass.pressure_drop(q))
-                / pass.inertance;
+            add(pass.to, *q);
         }
         for r in &self.reducers {
             q_node[r.node] -= r.flow(s.nodes[r.node], s.tank);
+        }
+        (q_node, q_ch)
+    }
+
+    /// Right-hand side of the network: (3.2) node pressures and (3.3) passage flows, for
+    /// the given valve port flows. `bulk(p)` is the oil's effective bulk modulus. Returns
+    /// the flows delivered into the chambers.
+    pub fn derivatives(
+        &self,
+        s: &NetworkState,
+        port_flows: &[[f64; 2]; 2],
+        bulk: impl Fn(f64) -> f64,
+        d_nodes: &mut [f64],
+        d_flows: &mut [f64],
+    ) -> [f64; 2] {
+        let (q_node, q_ch) = self.inflows(s, port_flows);
+        for (k, pass) in self.passages.iter().enumerate() {
+            // (3.3) fluid inertia driven by the pressure difference less the losses
+            d_flows[k] =
+                (s.pressure(pass.from) - s.pressure(pass.to) - pass.pressure_drop(s.flows[k]))
+                    / pass.inertance;
         }
         for (k, node) in self.nodes.iter().enumerate() {
             // (3.2) compressibility of the node's share of passage volume
             d_nodes[k] = bulk(s.nodes[k]) / node.volume * q_node[k];
         }
         q_ch
-    }
-}
-
-/// The driven valve ports of a mode that push the piston flow into each chamber, with the
-/// share of the chamber flow each carries (mode 2: the two valves split it equally, the
-/// assumption of Table 3.4).
-fn driven_ports(mode: Mode) -> Vec<(usize, usize, usize, f64)> {
-    // (valve, port 0=A/1=B, chamber, share)
-    match mode {
-        Mode::FourWaySingle => vec![(0, 0, 0, 1.0), (0, 1, 1, 1.0)],
-        Mode::FourWayParallel => vec![
-            (0, 0, 0, 0.5),
-            (1, 1, 0, 0.5),
-            (1, 0, 1, 0.5),
-            (0, 1, 1, 0.5),
-        ],
-        Mode::ThreeWay => vec![(0, 0, 0, 1.0), (1, 0, 1, 1.0)],
-    }
-}
-
-/// The passages on the way from a node to a chamber, found by walking the network (a
-/// tree between the two bifurcations).
-fn path_to_chamber(c: &Circuit, start: Port, chamber: usize) -> Option<Vec<usize>> {
-    fn walk(c: &Circuit, at: Port, target: Port, used: &mut Vec<usize>) -> bool {
-        if at == target {
-            return true;
-        }
-        for (k, p) in c.passages.iter().enumerate() {
-            if used.contains(&k) {
-                continue;
-            }
-            let next = if p.from == at {
-                p.to
-            } else if p.to == at {
-                p.from
-            } else {
-                continue;
-            };
-            used.push(k);
-            if walk(c, next, target, used) {
-                return true;
-            }
-            used.pop();
-        }
-        false
-    }
-    let mut used = Vec::new();
-    walk(c, start, Port::Chamber(chamber), &mut used).then_some(used)
-}
-
-/// The full network with unit scales, used for the lumped figures.
-fn reference_network(mode: Mode, density: f64) -> Circuit {
-    Circuit::network(
-        mode,
-        &ManifoldConfig {
-            volume: true,
-            inertia: true,
-            losses: false,
-            volume_scale: 1.0,
-            inertia_scale: 1.0,
-            loss_scale: 0.0,
-            density,
-            viscosity: 0.0,
-            // the figures derived from it are per unit area
-            piston_area: 1.0,
-        },
-    )
-}
-
-/// Table 3.3: oil volume hydraulically joined to each chamber, i.e. every passage volume
-/// in the chamber's connected part of the network (valves and reducers cut it).
-pub fn added_volume(mode: Mode) -> [f64; 2] {
-    let net = reference_network(mode, 1.0);
-    let mut out = [0.0; 2];
-    for (ch, total) in out.iter_mut().enumerate() {
-        // passages reachable from the chamber through passages only
-        let mut reach = vec![Port::Chamber(ch)];
-        let mut seen = vec![false; net.passages.len()];
-        while let Some(at) = reach.pop() {
-            for (k, p) in net.passages.iter().enumerate() {
-                if seen[k] || (p.from != at && p.to != at) {
-                    continue;
-                }
-                seen[k] = true;
-                *total += p.kind.volume();
-                reach.push(if p.from == at { p.to } else { p.from });
-            }
-        }
-    }
-    out
-}
-
-/// Table 3.4: equivalent fluid mass referred to the piston (3.12)-(3.16),
-/// A^2 * sum(lambda_k^2 * rho l_k / a_k), lambda_k the share of the chamber flow in
-/// passage k. Returned per unit piston area squared times area^2 (kg).
-pub fn equivalent_mass_per_area2(mode: Mode, density: f64) -> f64 {
-    let net = reference_network(mode, density);
-    let mut lambda = vec![0.0; net.passages.len()];
-    for (valve, port, chamber, share) in driven_ports(mode) {
-        let start = net.valve_ports[valve][port];
-        if let Some(path) = path_to_chamber(&net, start, chamber) {
-            for k in path {
-                lambda[k] += share; // (3.14) branch flow over total flow
-            }
-        }
-    }
-    net.passages
-        .iter()
-        .zip(&lambda)
-        .map(|(p, l)| l * l * p.inertance) // (3.16) per A^2
-        .sum()
-}
-
-/// Table 3.4: the fluid mass referred to a piston of area `area` (m2).
-pub fn equivalent_mass(mode: Mode, density: f64, area: f64) -> f64 {
-    area * area * equivalent_mass_per_area2(mode, density)
-}
-
-#[cfg(test)]
-mod tests {
-    use super::*;
-    use crate::params::LPM;
-
-    const RHO: f64 = 862.0;
-
-    #[test]
-    fn added_volumes_reproduce_table_3_3() {
-        for (mode, v) in [
-            (Mode::FourWaySingle, 1.0041e-4),
-            (Mode::FourWayParallel, 1.0041e-4),
-            (Mode::ThreeWay, 7.9754e-5),
-        ] {
-            for got in added_volume(mode) {
-                assert!((got / v - 1.0).abs() < 1e-3, "{mode:?}: {got} vs {v}");
-            }
-        }
-    }
-
-    #[test]
-    fn equivalent_masses_reproduce_table_3_4() {
-        for (mode, m) in [
-            (Mode::FourWaySingle, 4.70),
-            (Mode::FourWayParallel, 2.80),
-            (Mode::ThreeWay, 3.42),
-        ] {
-            let got = equivalent_mass(mode, RHO, crate::params::ActuatorParams::default().area);
-            assert!((got / m - 1.0).abs() < 5e-3, "{mode:?}: {got} vs {m}");
-        }
-    }
-
-    #[test]
-    fn passage_c1_n2_losses_follow_table_3_2() {
-        let net = Circuit::network(
-            Mode::FourWaySingle,
-            &ManifoldConfig {
-                volume: true,
-                inertia: true,
-                losses: true,
-                volume_scale: 1.0,
-                inertia_scale: 1.0,
-                loss_scale: 1.0,
-                density: RHO,
-                viscosity: RHO * 46e-6, // VG 46 at 40 degC
-                piston_area: crate::params::ActuatorParams::default().area,
-            },
-        );
-        let cn = net
-            .passages
-            .iter()
-            .find(|p| p.kind == PassageKind::CN)
-            .unwrap();
-        for (q_lpm, dp_bar) in [(10.0, 0.05281), (20.0, 0.18360), (30.0, 0.39237)] {
-            let got = cn.pressure_drop(q_lpm * LPM) / BAR;
-            assert!(
-                (got / dp_bar - 1.0).abs() < 0.03,
-                "{q_lpm} L/min: {got} bar vs {dp_bar}"
-            );
-            let back = cn.pressure_drop(-q_lpm * LPM) / BAR;
-            assert!((back + got).abs() < 1e-12, "losses oppose the flow");
-        }
-    }
-
-    #[test]
-    fn mode_3_drains_b_ports_through_reducers_and_keeps_dead_legs() {
-        let c = reference_network(Mode::ThreeWay, RHO);
-        assert_eq!(c.reducers.len(), 2);
-        assert!(c.nodes.iter().any(|n| n.name == "D1") && c.nodes.iter().any(|n| n.name == "D2"));
-        for v in 0..2 {
-            let b = c.valve_ports[v][1];
-            assert!(path_to_chamber(&c, b, 0).is_none() && path_to_chamber(&c, b, 1).is_none());
-        }
-        let c = reference_network(Mode::FourWaySingle, RHO);
-        assert!(c.reducers.is_empty());
-        assert!(
-            path_to_chamber(&c, c.valve_ports[0][1], 1).is_some(),
-            "B1 feeds chamber 2"
-        );
     }
 }

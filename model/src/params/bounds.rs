@@ -1,4 +1,4 @@
-//! Physical bounds of the parameters the registry ([`crate::effects::PARAMS`]) does not
+//! Physical bounds of the parameters the registry ([`crate::params::PARAMS`]) does not
 //! list: the fluid's reference state and viscosity law, the servovalves' ratings and the
 //! friction and sensor shape constants. The registry holds what the FMUs expose and the
 //! gap workflow fits; these are the rest of the parameter tree, which a parameter file
@@ -9,7 +9,7 @@
 //! wide on purpose: they reject what is not a hydraulic bench (a zero rated pressure drop
 //! divides by zero in (II.2)), not what is merely unusual.
 
-use crate::params::Params;
+use super::Params;
 
 /// One bounded scalar of the parameter tree outside the registry.
 pub struct Bound {
@@ -100,7 +100,7 @@ pub fn viscosity_in_range(p: &Params, t: f64) -> Result<(), String> {
 #[cfg(test)]
 mod tests {
     use super::*;
-    use crate::effects::PARAMS;
+    use crate::params::PARAMS;
 
     /// Every real number in the TOML form of the tree, by dotted path (arrays indexed).
     fn numeric_leaves(v: &toml::Value, prefix: &str, out: &mut Vec<String>) {

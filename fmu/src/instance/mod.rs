@@ -1,25 +1,17 @@
-//! One FMU instance: the FMI 2.0 Co-Simulation state machine around a [`Model`], the
-//! host's logger, and the state snapshots. Nothing here knows any physics.
+//! One FMU instance: the FMI 2.0 Co-Simulation state machine around a [`Model`] and
+//! the state snapshots; the host's logger is in `logger`. Nothing here knows any physics.
 
-use std::ffi::{c_char, CStr, CString};
+use std::ffi::{c_char, CStr};
 
 use sha2::{Digest, Sha256};
 
-use crate::ffi::{CallbackFunctions, CallbackLogger, ComponentEnvironment, Status};
+use crate::ffi::Status;
 use crate::slave::{Model, Value, VarDef};
 
-/// Log categories declared in every model description.
-pub const LOG_CATEGORIES: [(&str, &str); 3] = [
-    (
-        "logStatusError",
-        "Errors: misuse of the API, refused values, failed steps",
-    ),
-    ("logStatusWarning", "Warnings"),
-    (
-        "logEvents",
-        "Life cycle: instantiation, initialization, termination",
-    ),
-];
+mod logger;
+
+pub use crate::ffi::LOG_CATEGORIES;
+pub use logger::Logger;
 
 /// FMI 2.0 Co-Simulation states (standard section 4.2.4).
 #[derive(Debug, Clone, Copy, PartialEq, Eq, serde::Serialize, serde::Deserialize)]
@@ -30,92 +22,6 @@ pub enum State {
     StepFailed,
     Terminated,
     Error,
-}
-
-/// The host's logger and identity, kept to report through.
-pub struct Logger {
-    callback: CallbackLogger,
-    environment: ComponentEnvironment,
-    instance_name: CString,
-    pub logging_on: bool,
-    pub categories: Vec<bool>,
-}
-
-// The environment pointer is the host's, handed back to it unchanged; the host owns
-// thread safety of its own logger (FMI 2.0 allows no concurrent calls on one instance).
-unsafe impl Send for Logger {}
-
-impl Logger {
-    /// # Safety
-    /// `functions` must be null or point to a valid fmi2CallbackFunctions.
-    pub unsafe fn new(
-        functions: *const CallbackFunctions,
-        instance_name: &str,
-        logging_on: bool,
-    ) -> Logger {
-        let (callback, environment) = match functions.as_ref() {
-            Some(f) => (f.logger, f.component_environment),
-            None => (None, std::ptr::null_mut()),
-        };
-        Logger {
-            callback,
-            environment,
-            instance_name: CString::new(instance_name.replace('\0', " ")).unwrap_or_default(),
-            logging_on,
-            categories: vec![true; LOG_CATEGORIES.len()],
-        }
-    }
-
-    /// Report through the host's callback. Refusals (discard) and errors are always
-    /// reported, so every misuse leaves a message; the rest only when logging is on
-    /// and the category enabled.
-    pub fn log(&self, status: Status, category: usize, message: &str) {
-        let Some(cb) = self.callback else { return };
-        let forced = status >= Status::Discard;
-        if !forced && (!self.logging_on || !self.categories.get(category).copied().unwrap_or(false))
-        {
-            return;
-        }
-        let cat = CString::new(LOG_CATEGORIES[category.min(LOG_CATEGORIES.len() - 1)].0)
-            .unwrap_or_default();
-        let msg = CString::new(message.replace('\0', " ")).unwrap_or_default();
-        let fmt = c"%s";
-        // SAFETY: the host gave us this logger; the message goes through "%s" so no
-        // format directive in it is ever interpreted.
-        unsafe {
-            cb(
-                self.environment,
-                self.instance_name.as_ptr(),
-                status,
-                cat.as_ptr(),
-                fmt.as_ptr(),
-                msg.as_ptr(),
-            )
-        };
-    }
-
-    pub fn error(&self, message: &str) {
-        self.log(Status::Error, 0, message);
-    }
-
-    /// A warning the host always sees, logging on or off: kept for what a user must not
-    /// miss, such as a parameter file that is not read.
-    pub fn warn(&self, message: &str) {
-        let Some(cb) = self.callback else { return };
-        let cat = CString::new(LOG_CATEGORIES[1].0).unwrap_or_default();
-        let msg = CString::new(message.replace('\0', " ")).unwrap_or_default();
-        // SAFETY: as in `log`
-        unsafe {
-            cb(
-                self.environment,
-                self.instance_name.as_ptr(),
-                Status::Warning,
-                cat.as_ptr(),
-                c"%s".as_ptr(),
-                msg.as_ptr(),
-            )
-        };
-    }
 }
 
 /// The operations the exported functions need, whatever the model.
@@ -340,7 +246,7 @@ impl<M: Model> Component for Instance<M> {
         if let Some(tol) = tolerance {
             // the registry's bounds of the integrator's relative tolerance
             let (lo, hi) =
-                hbmodel::effects::param("solver.rtol").map_or((1e-12, 1e-2), |p| (p.min, p.max));
+                hbmodel::params::param("solver.rtol").map_or((1e-12, 1e-2), |p| (p.min, p.max));
             if !(tol.is_finite() && (lo..=hi).contains(&tol)) {
                 return self.fail(
                     Status::Error,

@@ -2,7 +2,7 @@
 //!
 //! A parameter file may give any subset of the tree; what it leaves out keeps the
 //! built-in thesis value. Loading validates every field against the physical bounds
-//! declared in [`crate::effects::PARAMS`] and names the file, line, field and bound of
+//! declared in [`PARAMS`] and names the file, line, field and bound of
 //! the first violation.
 
 use std::fmt;
@@ -10,11 +10,18 @@ use std::path::Path;
 
 use serde::{Deserialize, Serialize};
 
-use crate::bounds::{viscosity_in_range, BOUNDS};
-use crate::effects::{Effect, Effects, EFFECTS, PARAMS};
+use crate::effects::{Effect, Effects, EFFECTS};
 use crate::fluid::FluidParams;
 use crate::friction::FrictionParams;
 use crate::sensors::SensorParams;
+use bounds::{viscosity_in_range, BOUNDS};
+
+pub mod bounds;
+pub mod registry;
+mod valve;
+
+pub use registry::{param, ParamSpec, PARAMS};
+pub use valve::{SpoolDynamics, ValveModel, ValveParams, NULL_LEAKAGE, NULL_WIDTH, TUNED_DYNAMICS};
 
 /// Litres per minute, in m3/s: for converting the thesis's display units at the edges.
 pub const LPM: f64 = 1e-3 / 60.0;
@@ -113,51 +120,6 @@ impl Default for ManifoldParams {
             volume_scale: 1.0,
             inertia_scale: 1.0,
             loss_scale: 1.0,
-        }
-    }
-}
-
-/// Which servovalve model a valve uses.
-#[derive(Debug, Clone, Copy, PartialEq, Eq, Serialize, Deserialize, Default)]
-#[serde(rename_all = "snake_case")]
-pub enum ValveModel {
-    /// Static flow law (II.2), optionally with second-order spool dynamics.
-    #[default]
-    Reduced,
-    /// Physical two-stage model of chapter 2 (torque motor, pilot stage, spool, lands).
-    TwoStage,
-}
-
-/// One MOOG D765 servovalve (reduced model).
-#[derive(Debug, Clone, Copy, PartialEq, Serialize, Deserialize)]
-#[serde(deny_unknown_fields, default)]
-pub struct ValveParams {
-    pub model: ValveModel,
-    pub rated_flow: f64,
-    pub rated_pressure_drop: f64,
-    pub rated_command: f64,
-    pub null_bias: f64,
-    pub null_leakage: f64,
-    pub null_width: f64,
-    pub natural_frequency: f64,
-    pub damping: f64,
-    pub max_spool_rate: f64,
-}
-
-impl Default for ValveParams {
-    fn default() -> Self {
-        let s = crate::servovalve::reduced::TUNED_DYNAMICS;
-        ValveParams {
-            model: ValveModel::Reduced,
-            rated_flow: 19.0 * LPM,          // Table 1.1
-            rated_pressure_drop: 70.0 * BAR, // Table 1.1, total drop over both lands
-            rated_command: 10.0,             // Table 1.1
-            null_bias: 0.0,
-            null_leakage: crate::servovalve::reduced::NULL_LEAKAGE,
-            null_width: crate::servovalve::reduced::NULL_WIDTH,
-            natural_frequency: s.natural_frequency,
-            damping: s.damping,
-            max_spool_rate: s.max_spool_rate,
         }
     }
 }
@@ -263,7 +225,7 @@ impl Params {
     }
 
     /// Check every real parameter of the tree against its physical bounds (the registry's
-    /// and [`crate::bounds::BOUNDS`]), the laws' consistency rules and the effects'
+    /// and [`bounds::BOUNDS`]), the laws' consistency rules and the effects'
     /// requirements.
     pub fn validate(&self) -> Result<(), ParamError> {
         self.validate_in(IN_MEMORY, None)
@@ -391,6 +353,12 @@ impl Params {
     /// Whether an effect is on.
     pub fn has(&self, effect: Effect) -> bool {
         self.effects.get(effect)
+    }
+
+    /// The fluid as the model uses it: at the reference temperature unless the
+    /// temperature effect is on.
+    pub fn fluid_in_use(&self) -> FluidParams {
+        self.fluid.in_use(self.has(Effect::Temperature))
     }
 
     /// Parameters of SV2 as the model uses them: SV1's unless valve_asymmetry is on.
