@@ -230,7 +230,12 @@ pub fn case_with(
         hidden: all_hidden.iter().map(|e| e.name().to_string()).collect(),
         experiment: kind.name().into(),
         seed,
-        named: outcome.steps.iter().map(|s| s.effect.clone()).collect(),
+        // an effect's brought-along requirements are named with it, after it
+        named: outcome
+            .steps
+            .iter()
+            .flat_map(|s| std::iter::once(&s.effect).chain(&s.brings).cloned())
+            .collect(),
         truth: value,
         fitted,
         initial_gap: outcome.initial_gap,
@@ -564,12 +569,23 @@ mod thesis_story {
         bench.effects.set(Effect::ManifoldInertia, true);
         let (experiment, measured) = measure(&bench, Kind::Sweep, 4).unwrap();
         let o = super::super::run(&known, &experiment, &measured, false).unwrap();
-        let named: Vec<&str> = o.steps.iter().map(|s| s.effect.as_str()).collect();
-        assert_eq!(
-            named[..2],
-            ["manifold_volume", "manifold_inertia"],
-            "{named:?}"
+        // the passages come in first, as a whole: with the losses (which bring the
+        // volume and inertia along) fitted near none, or volume and inertia one by one
+        let steps: Vec<_> = o
+            .steps
+            .iter()
+            .map(|s| (s.effect.as_str(), &s.brings, &s.parameters))
+            .collect();
+        let first = o.steps.first().expect("an effect is named");
+        assert!(first.effect.starts_with("manifold_"), "{steps:?}");
+        assert!(
+            manifold[..2].iter().all(|e| o.model.has(*e)),
+            "the passages' volume and inertia are in the fitted model: {steps:?}"
         );
+        if o.model.has(Effect::ManifoldLosses) {
+            let losses = o.model.manifold.loss_scale;
+            assert!(losses < 0.25, "the bench has no losses: {losses} {steps:?}");
+        }
         let r = o
             .first
             .resonance

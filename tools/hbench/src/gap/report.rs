@@ -188,7 +188,15 @@ pub fn write(out: &Path, o: &Outcome, e: &Experiment, m: &Measured) -> Result<()
         let _ = writeln!(md, "- {s}");
     }
     for (i, step) in o.steps.iter().enumerate() {
-        let _ = writeln!(md, "\n## Step {}: add `{}`\n", i + 1, step.effect);
+        let with = if step.brings.is_empty() {
+            String::new()
+        } else {
+            format!(
+                " (with `{}`, which it requires, at built-in size)",
+                step.brings.join("`, `")
+            )
+        };
+        let _ = writeln!(md, "\n## Step {}: add `{}`{with}\n", i + 1, step.effect);
         if let Some(c) = hbmodel::Effect::from_name(&step.effect).and_then(candidate) {
             let _ = writeln!(md, "Signature of this effect: {}.\n", c.signature);
         }
