@@ -113,11 +113,18 @@ pub fn stacked_log_x(
 ) -> Result<(), String> {
     let fail = |e: &dyn std::fmt::Display| failure(path, e);
     let root = canvas(path, title, LOG_PANEL_HEIGHT * panels.len() as u32 + 40)?;
-    let (x0, x1) = decades(
-        panels
-            .iter()
-            .flat_map(|p| p.lines.iter().flat_map(|l| l.points.iter().map(|q| q.0))),
-    );
+    // from the decade below the data (labelled) to the data's top: a sweep to 300 Hz would
+    // leave half a decade empty
+    let (x0, x1) = panels
+        .iter()
+        .flat_map(|p| p.lines.iter().flat_map(|l| l.points.iter().map(|q| q.0)))
+        .filter(|x| x.is_finite() && *x > 0.0)
+        .fold((f64::MAX, f64::MIN), |(a, b), x| (a.min(x), b.max(x)));
+    let (x0, x1) = if x0 < x1 {
+        (10f64.powf(x0.log10().floor()), x1)
+    } else {
+        (0.1, 10.0)
+    };
     for (area, panel) in root.split_evenly((panels.len(), 1)).iter().zip(panels) {
         let (lo, hi) = range(&panel.lines);
         let mut chart = ChartBuilder::on(area)
