@@ -102,6 +102,66 @@ pub fn stacked(path: &Path, title: &str, x_desc: &str, panels: &[Panel]) -> Resu
     root.present().map_err(|e| fail(&e))
 }
 
+/// Write the panels stacked into an SVG file against a shared, logarithmic x quantity (a
+/// frequency response read as a Bode diagram: the decades of a log sweep evenly spread).
+/// Only positive x values are drawn.
+pub fn stacked_log_x(
+    path: &Path,
+    title: &str,
+    x_desc: &str,
+    panels: &[Panel],
+) -> Result<(), String> {
+    let fail = |e: &dyn std::fmt::Display| failure(path, e);
+    let root = canvas(path, title, LOG_PANEL_HEIGHT * panels.len() as u32 + 40)?;
+    // from the decade below the data (labelled) to the data's top: a sweep to 300 Hz would
+    // leave half a decade empty
+    let (x0, x1) = panels
+        .iter()
+        .flat_map(|p| p.lines.iter().flat_map(|l| l.points.iter().map(|q| q.0)))
+        .filter(|x| x.is_finite() && *x > 0.0)
+        .fold((f64::MAX, f64::MIN), |(a, b), x| (a.min(x), b.max(x)));
+    let (x0, x1) = if x0 < x1 {
+        (10f64.powf(x0.log10().floor()), x1)
+    } else {
+        (0.1, 10.0)
+    };
+    for (area, panel) in root.split_evenly((panels.len(), 1)).iter().zip(panels) {
+        let (lo, hi) = range(&panel.lines);
+        let mut chart = ChartBuilder::on(area)
+            .margin(8)
+            .x_label_area_size(30)
+            .y_label_area_size(70)
+            .build_cartesian_2d((x0..x1).log_scale(), lo..hi)
+            .map_err(|e| fail(&e))?;
+        chart
+            .configure_mesh()
+            .x_desc(x_desc)
+            .y_desc(panel.title.as_str())
+            .light_line_style(BLACK.mix(0.08))
+            .draw()
+            .map_err(|e| fail(&e))?;
+        for (k, line) in panel.lines.iter().enumerate() {
+            let color = Palette99::pick(k).to_rgba();
+            let points = line.points.iter().copied().filter(|q| q.0 > 0.0);
+            chart
+                .draw_series(LineSeries::new(points, &color))
+                .map_err(|e| fail(&e))?
+                .label(line.label.as_str())
+                .legend(move |(x, y)| PathElement::new([(x, y), (x + 16, y)], color));
+        }
+        if panel.lines.len() > 1 {
+            chart
+                .configure_series_labels()
+                .position(SeriesLabelPosition::LowerLeft)
+                .background_style(WHITE.mix(0.8))
+                .border_style(BLACK)
+                .draw()
+                .map_err(|e| fail(&e))?;
+        }
+    }
+    root.present().map_err(|e| fail(&e))
+}
+
 /// One line of a log-log panel: its colour (palette index) and whether it is dashed.
 pub struct LogLine {
     pub label: String,

@@ -9,6 +9,8 @@ use serde::Serialize;
 
 use super::data::{Drive, Experiment, Measured};
 use super::drive::Traces;
+pub use super::resonance::Resonance;
+use super::resonance::{resonances, spectra, COHERENCE, INPUT_POWER};
 
 /// Noise standard deviation of a sampled signal, estimated from the data alone by
 /// minimum statistics: white noise spreads its power evenly over all frequencies, while
@@ -201,19 +203,14 @@ pub struct Response {
 }
 
 #[derive(Debug, Clone, Serialize)]
-pub struct Resonance {
-    pub measured_hz: f64,
-    pub simulated_hz: f64,
-    pub measured_damping: f64,
-    pub simulated_damping: f64,
-}
-
-#[derive(Debug, Clone, Serialize)]
 pub struct Localisation {
     pub signals: Vec<SignalGap>,
     pub windows: Vec<WindowGap>,
     pub bands: Vec<BandGap>,
+    /// Resonance of y's response to the input (of its velocity's in open loop).
     pub resonance: Option<Resonance>,
+    /// Resonance of the load pressure P1 - P2's response to the input.
+    pub pressure_resonance: Option<Resonance>,
     /// Delay that best explains the phase difference over the coherent bins (s).
     pub equivalent_delay: Option<f64>,
     #[serde(skip)]
@@ -228,53 +225,6 @@ const BANDS: [[f64; 2]; 5] = [
     [30.0, 100.0],
     [100.0, 300.0],
 ];
-/// Welch segments: 1024 samples, about 1 Hz resolution at 1 kHz.
-const SEGMENT: usize = 1024;
-/// Bins whose measured coherence is below this are not compared.
-const COHERENCE: f64 = 0.8;
-/// Bins whose input power is below this fraction of the strongest are not compared: 60 dB
-/// down (a log sweep's power falls as 1/f, 25 dB from 1 to 300 Hz), nothing drives the
-/// bench there but the window's leakage.
-const INPUT_POWER: f64 = 1e-6;
-
-/// Cross and auto spectra of x -> y by Welch's method (Hann, 50 % overlap).
-fn spectra(x: &[f64], y: &[f64], period: f64) -> (Vec<f64>, Vec<Complex<f64>>, Vec<f64>, Vec<f64>) {
-    let n = SEGMENT.min(x.len().next_power_of_two() / 2).max(16);
-    let fft = FftPlanner::new().plan_fft_forward(n);
-    let hann: Vec<f64> = (0..n)
-        .map(|k| 0.5 - 0.5 * (2.0 * PI * k as f64 / n as f64).cos())
-        .collect();
-    let mut sxy = vec![Complex::new(0.0, 0.0); n / 2];
-    let (mut sxx, mut syy) = (vec![0.0; n / 2], vec![0.0; n / 2]);
-    // half-overlapping segments, the last one flush with the end so the record's tail
-    // (a sweep's highest frequencies) is analysed too
-    let mut starts: Vec<usize> = (0..)
-        .map(|k| k * n / 2)
-        .take_while(|s| s + n <= x.len())
-        .collect();
-    if starts.last().is_some_and(|&s| s + n < x.len()) {
-        starts.push(x.len() - n);
-    }
-    for start in starts {
-        let seg = |s: &[f64]| -> Vec<Complex<f64>> {
-            let mean = s[start..start + n].iter().sum::<f64>() / n as f64;
-            let mut b: Vec<Complex<f64>> = (0..n)
-                .map(|k| Complex::new((s[start + k] - mean) * hann[k], 0.0))
-                .collect();
-            fft.process(&mut b);
-            b
-        };
-        let (fx, fy) = (seg(x), seg(y));
-        for k in 0..n / 2 {
-            sxy[k] += fx[k].conj() * fy[k];
-            sxx[k] += fx[k].norm_sqr();
-            syy[k] += fy[k].norm_sqr();
-        }
-    }
-    let freq = (0..n / 2).map(|k| k as f64 / (n as f64 * period)).collect();
-    (freq, sxy, sxx, syy)
-}
-
 fn response(m: &Measured, sim: &Traces, input: &[f64]) -> Response {
     let period = m.period();
     let (freq, sxy_m, sxx, syy_m) = spectra(input, m.get("y").unwrap_or(&[]), period);
@@ -307,39 +257,6 @@ fn response(m: &Measured, sim: &Traces, input: &[f64]) -> Response {
         coherent,
         driven,
     }
-}
-
-/// The resonance of a response: the bin above 50 Hz that stands highest over the lowest
-/// point between half its frequency and itself (a closed-loop response falls with
-/// frequency, so its resonance is a bump, not the maximum), if it stands 2 dB or more;
-/// damping from the -3 dB width around it.
-fn peak(freq: &[f64], db: &[f64], ok: &[bool]) -> Option<(f64, f64)> {
-    let idx: Vec<usize> = (0..freq.len())
-        .filter(|&k| ok[k] && freq[k] >= 50.0)
-        .collect();
-    let prominence = |k: usize| {
-        let valley = idx
-            .iter()
-            .filter(|&&j| freq[j] >= 0.5 * freq[k] && j <= k)
-            .map(|&j| db[j])
-            .fold(f64::INFINITY, f64::min);
-        db[k] - valley
-    };
-    let &k = idx
-        .iter()
-        .max_by(|a, b| prominence(**a).total_cmp(&prominence(**b)))?;
-    if prominence(k) < 2.0 {
-        return None;
-    }
-    let half = db[k] - 3.0;
-    let lo = (0..k)
-        .rev()
-        .find(|&i| db[i] < half)
-        .map_or(freq[0], |i| freq[i]);
-    let hi = (k..freq.len())
-        .find(|&i| db[i] < half)
-        .map_or(freq[freq.len() - 1], |i| freq[i]);
-    Some((freq[k], (hi - lo) / (2.0 * freq[k])))
 }
 
 pub fn localise(
@@ -383,14 +300,17 @@ pub fn localise(
             }
         })
         .collect();
-    let input = match &e.drive {
-        Drive::Proportional { reference, .. } => m.get(reference),
-        Drive::OpenLoop => m.get("u1"),
+    let input_name = match &e.drive {
+        Drive::Proportional { reference, .. } => reference.as_str(),
+        Drive::OpenLoop => "u1",
     };
+    let input = m.get(input_name);
     let response = input
         .filter(|x| x.len() >= 256)
         .map(|x| response(m, sim, x));
-    let (mut bands, mut resonance, mut delay) = (Vec::new(), None, None);
+    let (resonance, pressure_resonance) =
+        resonances(m, sim, input_name, matches!(e.drive, Drive::OpenLoop));
+    let (mut bands, mut delay) = (Vec::new(), None);
     if let Some(r) = &response {
         let ratio = |k: usize| {
             (
@@ -418,17 +338,6 @@ pub fn localise(
             });
         }
         let ok = &r.coherent;
-        if let (Some((fm, zm)), Some((fs, zs))) = (
-            peak(&r.freq, &r.measured_db, ok),
-            peak(&r.freq, &r.simulated_db, &r.driven),
-        ) {
-            resonance = Some(Resonance {
-                measured_hz: fm,
-                simulated_hz: fs,
-                measured_damping: zm,
-                simulated_damping: zs,
-            });
-        }
         // least-squares slope of the phase difference against omega through the origin
         let (mut sxy, mut sxx) = (0.0, 0.0);
         for k in (0..r.freq.len()).filter(|&k| ok[k] && r.freq[k] > 0.0) {
@@ -445,6 +354,7 @@ pub fn localise(
         windows,
         bands,
         resonance,
+        pressure_resonance,
         equivalent_delay: delay,
         response,
     }
@@ -484,10 +394,10 @@ pub fn describe(l: &Localisation) -> Vec<String> {
             b.low_hz, b.high_hz, b.gain_db, b.phase_deg, b.bins
         ));
     }
-    if let Some(r) = &l.resonance {
+    for r in l.resonance.iter().chain(&l.pressure_resonance) {
         s.push(format!(
-            "resonance: measured {:.0} Hz (damping {:.2}), simulated {:.0} Hz (damping {:.2})",
-            r.measured_hz, r.measured_damping, r.simulated_hz, r.simulated_damping
+            "resonance of {}: measured {:.1} Hz (damping {:.3}), simulated {:.1} Hz (damping {:.3})",
+            r.response, r.measured_hz, r.measured_damping, r.simulated_hz, r.simulated_damping
         ));
     }
     if let Some(d) = l.equivalent_delay {

@@ -17,6 +17,7 @@ pub mod fit;
 pub mod hide;
 pub mod peer;
 mod report;
+pub mod resonance;
 pub mod variants;
 
 use std::path::{Path, PathBuf};

@@ -10,13 +10,29 @@ use super::analysis::describe;
 use super::data::{Drive, Experiment, Measured};
 use super::effects::candidate;
 use super::Outcome;
-use crate::plot::{stacked, time_traces, Line, Panel};
+use crate::plot::{stacked_log_x, time_traces, Line, Panel};
 
 fn line(label: &str, t: &[f64], v: &[f64], scale: f64) -> Line {
     Line {
         label: label.into(),
         points: t.iter().zip(v).map(|(t, v)| (*t, v * scale)).collect(),
     }
+}
+
+/// Phase points (deg) unwrapped: where two consecutive points jump by more than 180 deg,
+/// the rest is moved by whole turns, so that a lag growing through -180 deg (a resonance,
+/// a delay) reads as it grows instead of wrapping back to +180.
+fn unwrap_phase(points: &[(f64, f64)]) -> Vec<(f64, f64)> {
+    let mut turns = 0.0;
+    let mut out: Vec<(f64, f64)> = Vec::with_capacity(points.len());
+    for (k, &(f, deg)) in points.iter().enumerate() {
+        if k > 0 {
+            let jump = deg + turns - out[k - 1].1;
+            turns -= 360.0 * (jump / 360.0).round();
+        }
+        out.push((f, deg + turns));
+    }
+    out
 }
 
 fn figures(out: &Path, o: &Outcome, m: &Measured) -> Result<Vec<String>, String> {
@@ -84,32 +100,31 @@ fn figures(out: &Path, o: &Outcome, m: &Measured) -> Result<Vec<String>, String>
                 .map(|((f, v), _)| (*f, *v))
                 .collect()
         };
-        let compared = |title: &str, measured: &[f64], before: &[f64], after: &[f64]| Panel {
+        let compared = |title: &str, lines: [&[f64]; 3], phase: bool| Panel {
             title: title.into(),
-            lines: [
-                ("measured", measured),
-                ("model before", before),
-                ("model after", after),
-            ]
-            .into_iter()
-            .map(|(label, v)| Line {
-                label: label.into(),
-                points: pick(v),
-            })
-            .collect(),
+            lines: ["measured", "model before", "model after"]
+                .into_iter()
+                .zip(lines)
+                .map(|(label, v)| Line {
+                    label: label.into(),
+                    points: if phase {
+                        unwrap_phase(&pick(v))
+                    } else {
+                        pick(v)
+                    },
+                })
+                .collect(),
         };
         let panels = [
             compared(
                 "|y / input| (dB)",
-                &r0.measured_db,
-                &r0.simulated_db,
-                &r1.simulated_db,
+                [&r0.measured_db, &r0.simulated_db, &r1.simulated_db],
+                false,
             ),
             compared(
-                "phase (deg)",
-                &r0.measured_deg,
-                &r0.simulated_deg,
-                &r1.simulated_deg,
+                "phase (deg, unwrapped)",
+                [&r0.measured_deg, &r0.simulated_deg, &r1.simulated_deg],
+                true,
             ),
         ];
         let mut csv = String::from(
@@ -130,7 +145,7 @@ fn figures(out: &Path, o: &Outcome, m: &Measured) -> Result<Vec<String>, String>
             );
         }
         std::fs::write(out.join("response.csv"), csv).map_err(|err| err.to_string())?;
-        stacked(
+        stacked_log_x(
             &out.join("response.svg"),
             "Frequency response estimates (coherent bins)",
             "frequency (Hz)",
@@ -242,5 +257,24 @@ fn list<'a>(names: impl Iterator<Item = &'a str>) -> String {
         "none (the control model (II.1))".into()
     } else {
         v.join(", ")
+    }
+}
+
+#[cfg(test)]
+mod tests {
+    use super::unwrap_phase;
+
+    #[test]
+    fn phase_is_unwrapped_through_minus_180() {
+        // a lag growing by 50 deg a point, wrapped into (-180, 180]
+        let wrapped: Vec<(f64, f64)> = (0..12)
+            .map(|k| {
+                let deg = -50.0 * k as f64;
+                (k as f64, (deg + 180.0f64).rem_euclid(360.0) - 180.0)
+            })
+            .collect();
+        for (k, (_, deg)) in unwrap_phase(&wrapped).iter().enumerate() {
+            assert!((deg + 50.0 * k as f64).abs() < 1e-9, "{k}: {deg}");
+        }
     }
 }
