@@ -216,9 +216,17 @@ where
                 }
                 // the interval again, from its start, with diffsol's ESDIRK34: a
                 // deterministic function of (x, step), so a restored state replays it
-                Err(SolverError::Stalled { .. }) => {
-                    diffsol_integrate(f, Method::Esdirk34, x, t0, t1, tol, scale, stats, carry.step)
-                }
+                Err(SolverError::Stalled { .. }) => diffsol_integrate(
+                    f,
+                    Method::Esdirk34,
+                    x,
+                    t0,
+                    t1,
+                    tol,
+                    scale,
+                    stats,
+                    carry.step,
+                ),
                 // a failure leaves x where it was
                 Err(e) => Err(e),
             }

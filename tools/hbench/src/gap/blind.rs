@@ -471,21 +471,26 @@ pub fn main(o: &Options) -> Result<(), String> {
 #[cfg(test)]
 mod tests {
     //! The CI sample of the blind study: every candidate effect hidden once, on the
-    //! experiment that rotates through the four types, plus nothing hidden, two effects
+    //! cheapest experiment that shows it (`ci_experiment`), plus nothing hidden, two effects
     //! at once and the thesis's chapter-4 story. `hbench blind` runs the full study.
 
     use super::*;
 
-    /// Where the rotation would give an experiment that cannot show the effect, the
-    /// sample uses one that can: slow 7th-order moves barely excite the oil columns
-    /// (entrained air) or the valve's bandwidth, and the manifold losses, which come
-    /// with the passages' volume and inertia, are told apart on the sweep; measured in
-    /// the full study.
-    const CI_EXPERIMENT: [(Effect, Kind); 3] = [
-        (Effect::ManifoldLosses, Kind::Sweep),
-        (Effect::EntrainedAir, Kind::Steps),
-        (Effect::ValveDynamics, Kind::Sweep),
-    ];
+    /// The experiment of each effect's CI case: the cheapest that shows it, measured
+    /// (`hbench blind --effect E --experiment K --seeds 1`, CPU s for the whole case):
+    /// on the steps every effect was named first and fitted within 2 % in 3-45 s
+    /// (manifold losses, which bring the passages, 45 s); the same cases on the sweep
+    /// took 53-566 s (the sweep keeps the passages' fast oil columns ringing). Viscous
+    /// friction runs on the chirp (30 s), so open-loop data are in the sample; the sweep
+    /// is in `two_hidden_effects_are_both_found` and the chapter-4 story, the moves and
+    /// the chirp again in `with_nothing_hidden_nothing_is_added`. `hbench blind` runs
+    /// every effect on every experiment.
+    fn ci_experiment(e: Effect) -> Kind {
+        match e {
+            Effect::ViscousFriction => Kind::Chirp,
+            _ => Kind::Steps,
+        }
+    }
 
     fn check(c: &Case) {
         assert!(c.first_correct(), "{c:?}");
@@ -498,14 +503,9 @@ mod tests {
 
     #[test]
     fn every_hidden_effect_is_named_first_and_fitted() {
-        let kinds = [Kind::Sweep, Kind::Steps, Kind::Chirp, Kind::Moves];
         let mut cases = Vec::new();
-        for (i, cand) in super::super::effects::all().iter().enumerate() {
-            let kind = CI_EXPERIMENT
-                .iter()
-                .find(|(e, _)| *e == cand.effect)
-                .map_or(kinds[i % kinds.len()], |(_, k)| *k);
-            cases.push(case(&[cand.effect], kind, 1).unwrap());
+        for cand in super::super::effects::all() {
+            cases.push(case(&[cand.effect], ci_experiment(cand.effect), 1).unwrap());
         }
         for c in &cases {
             check(c);
