@@ -127,6 +127,12 @@ enum Command {
         /// Directory for the report and the fitted parameter file
         #[arg(long, default_value = "out/gap")]
         out: PathBuf,
+        /// Bulk modulus, moving mass, valve rated flow and dead volume may be re-fitted
+        /// ("recalibrate" steps) within this fraction of the known model's values; 0
+        /// keeps them fixed. The parameters of effects already on are re-fitted within
+        /// their physical bounds.
+        #[arg(long, default_value_t = gap::recalibrate::DEFAULT_FRACTION)]
+        recalibrate_within: f64,
     },
     /// Write measured-like data with hidden effects: the model with each named effect on at
     /// a random plausible magnitude, driven through an experiment and sampled like the bench
@@ -286,7 +292,14 @@ fn main() -> ExitCode {
             experiment,
             model,
             out,
-        } => gap::main(&data, &experiment, model.as_deref(), &out),
+            recalibrate_within,
+        } => gap::main(
+            &data,
+            &experiment,
+            model.as_deref(),
+            &out,
+            recalibrate_within,
+        ),
         Command::Hide {
             effects,
             experiment,

@@ -17,6 +17,7 @@ use serde::Serialize;
 use hbmodel::sensors::SensorParams;
 
 use super::data::COMPARED;
+use super::effects::StepKind;
 use super::hide::{measure_truth, truth, Kind, Truth};
 use super::variants::{section_4_4, FormError, Simulator};
 use super::MIN_IMPROVEMENT;
@@ -28,6 +29,9 @@ pub struct Case {
     pub seed: u64,
     /// Effects the workflow added, in order.
     pub named: Vec<String>,
+    /// Parameters re-fitted as recalibration steps (counted apart from the named effects).
+    #[serde(default)]
+    pub recalibrated: Vec<String>,
     /// The first hidden effect's first parameter: truth and fit (none with nothing
     /// hidden).
     pub truth: Option<f64>,
@@ -212,7 +216,8 @@ pub fn case_with(
     let fitted = outcome
         .steps
         .iter()
-        .filter(|s| hidden.first().is_some_and(|h| s.effect == h.name()))
+        .filter(|s| s.kind == StepKind::Add)
+        .filter(|s| hidden.first().is_some_and(|h| s.name == h.name()))
         .find_map(|s| s.parameters.get(path).and_then(|v| v.as_f64()));
     // an effect that needs others brings them along: they are hidden too
     let mut all_hidden: Vec<Effect> = Vec::new();
@@ -230,11 +235,19 @@ pub fn case_with(
         hidden: all_hidden.iter().map(|e| e.name().to_string()).collect(),
         experiment: kind.name().into(),
         seed,
-        // an effect's brought-along requirements are named with it, after it
+        // an effect's brought-along requirements are named with it, after it;
+        // recalibrations are counted apart
         named: outcome
             .steps
             .iter()
-            .flat_map(|s| std::iter::once(&s.effect).chain(&s.brings).cloned())
+            .filter(|s| s.kind == StepKind::Add)
+            .flat_map(|s| std::iter::once(&s.name).chain(&s.brings).cloned())
+            .collect(),
+        recalibrated: outcome
+            .steps
+            .iter()
+            .filter(|s| s.kind == StepKind::Recalibrate)
+            .map(|s| s.name.clone())
             .collect(),
         truth: value,
         fitted,
@@ -504,8 +517,8 @@ mod tests {
     #[test]
     fn every_hidden_effect_is_named_first_and_fitted() {
         let mut cases = Vec::new();
-        for cand in super::super::effects::all() {
-            cases.push(case(&[cand.effect], ci_experiment(cand.effect), 1).unwrap());
+        for e in super::super::effects::all().iter().filter_map(|c| c.effect) {
+            cases.push(case(&[e], ci_experiment(e), 1).unwrap());
         }
         for c in &cases {
             check(c);
@@ -574,10 +587,10 @@ mod thesis_story {
         let steps: Vec<_> = o
             .steps
             .iter()
-            .map(|s| (s.effect.as_str(), &s.brings, &s.parameters))
+            .map(|s| (s.name.as_str(), &s.brings, &s.parameters))
             .collect();
         let first = o.steps.first().expect("an effect is named");
-        assert!(first.effect.starts_with("manifold_"), "{steps:?}");
+        assert!(first.name.starts_with("manifold_"), "{steps:?}");
         assert!(
             manifold[..2].iter().all(|e| o.model.has(*e)),
             "the passages' volume and inertia are in the fitted model: {steps:?}"

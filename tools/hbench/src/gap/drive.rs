@@ -92,3 +92,52 @@ pub fn simulate(params: &Params, e: &Experiment, m: &Measured) -> Result<Traces,
         signals,
     })
 }
+
+#[cfg(test)]
+mod tests {
+    use super::super::hide::{measure, Kind};
+    use hbmodel::effects::Effect;
+    use hbmodel::sensors::SensorParams;
+    use hbmodel::solver::{set_adaptive_method, Method};
+    use hbmodel::Params;
+
+    /// Our integrator against diffsol's BDF (a judge we did not write) on the record that
+    /// caught it out: the closed-loop sweep of a bench with lossy manifold passages. With
+    /// Newton stopped at 0.2 of the tolerance ours left the loop near 2.28 s on another
+    /// branch, 271 position and 1500 pressure noise levels away; at 0.01 it stays within
+    /// 0.15 and 1.2 (diffsol's ESDIRK34 and BDF differ by 0.15 and 0.85). Same seed, so
+    /// the noise cancels in the difference.
+    #[test]
+    fn the_sweep_with_lossy_passages_matches_diffsol() {
+        let mut truth = Params::default();
+        for e in [
+            Effect::ViscousFriction,
+            Effect::ManifoldVolume,
+            Effect::ManifoldInertia,
+            Effect::ManifoldLosses,
+        ] {
+            truth.effects.set(e, true);
+        }
+        truth.manifold.loss_scale = 3.44;
+        let run = |m: Method| {
+            set_adaptive_method(m);
+            let (_, measured) = measure(&truth, Kind::Sweep, 1).unwrap();
+            measured
+        };
+        let (judge, ours) = (run(Method::Bdf), run(Method::FilteredEsdirk34));
+        let noise = SensorParams::default();
+        for (signal, sigma) in [
+            ("y", noise.position_noise),
+            ("P1", noise.pressure_noise),
+            ("P2", noise.pressure_noise),
+        ] {
+            let (a, b) = (judge.get(signal).unwrap(), ours.get(signal).unwrap());
+            let worst = a
+                .iter()
+                .zip(b)
+                .map(|(a, b)| (a - b).abs() / sigma)
+                .fold(0.0, f64::max);
+            assert!(worst < 3.0, "{signal}: {worst:.2} noise levels from BDF");
+        }
+    }
+}

@@ -14,14 +14,38 @@ pub struct Fitted {
     pub log: bool,
     /// The drawn value takes either sign (offsets).
     pub either_sign: bool,
+    /// Bounds of the fit when narrower than the registry's physical ones (a
+    /// recalibration stays within a few percent of the known value).
+    pub bounds: Option<[f64; 2]>,
 }
 
-/// An effect the workflow can add, and what its missing shows in the data.
+/// Whether a step switches an effect on or re-fits what the known model has.
+#[derive(Debug, Clone, Copy, PartialEq, Eq, serde::Serialize)]
+#[serde(rename_all = "lowercase")]
+pub enum StepKind {
+    Add,
+    Recalibrate,
+}
+
+/// An effect the workflow can add, and what its missing shows in the data; or a
+/// recalibration of the known model's parameters (`effect` then names the registry
+/// effect they belong to, None for the base model's).
 #[derive(Debug, Clone, PartialEq)]
 pub struct Candidate {
-    pub effect: Effect,
+    pub kind: StepKind,
+    pub effect: Option<Effect>,
     pub fitted: Vec<Fitted>,
     pub signature: &'static str,
+}
+
+impl Candidate {
+    /// What the step is called in reports: the effect, or the parameter re-fitted.
+    pub fn name(&self) -> String {
+        match (self.kind, self.effect) {
+            (StepKind::Add, Some(e)) => e.name().to_string(),
+            _ => self.fitted.first().map_or("", |f| f.path).to_string(),
+        }
+    }
 }
 
 const fn lin(path: &'static str, plausible: [f64; 2]) -> Fitted {
@@ -30,6 +54,7 @@ const fn lin(path: &'static str, plausible: [f64; 2]) -> Fitted {
         plausible,
         log: false,
         either_sign: false,
+        bounds: None,
     }
 }
 
@@ -39,6 +64,7 @@ const fn log(path: &'static str, plausible: [f64; 2]) -> Fitted {
         plausible,
         log: true,
         either_sign: false,
+        bounds: None,
     }
 }
 
@@ -106,7 +132,8 @@ pub fn candidate(e: Effect) -> Option<Candidate> {
         Effect::Payload | Effect::Temperature => return None,
     };
     Some(Candidate {
-        effect: e,
+        kind: StepKind::Add,
+        effect: Some(e),
         fitted,
         signature,
     })
@@ -118,5 +145,9 @@ pub fn all() -> Vec<Candidate> {
 }
 
 pub fn names() -> Vec<&'static str> {
-    all().iter().map(|c| c.effect.name()).collect()
+    all()
+        .iter()
+        .filter_map(|c| c.effect)
+        .map(|e| e.name())
+        .collect()
 }

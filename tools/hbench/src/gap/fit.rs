@@ -14,7 +14,7 @@ use nalgebra::{DMatrix, DVector, Dyn, Owned};
 
 use super::data::{Experiment, Measured};
 use super::drive::simulate;
-use super::effects::{Candidate, Fitted};
+use super::effects::{Candidate, Fitted, StepKind};
 
 /// The data as the fits see it: measurement, experiment, noise per compared signal.
 pub struct Target<'a> {
@@ -66,7 +66,7 @@ struct Coordinate {
 impl Coordinate {
     fn new(f: &Fitted) -> Self {
         let spec = param(f.path).expect("candidates use registry parameters");
-        let (mut lo, hi) = (spec.min, spec.max);
+        let [mut lo, hi] = f.bounds.unwrap_or([spec.min, spec.max]);
         if f.log {
             // a log scale needs a positive floor: three decades under the plausible range
             lo = lo.max(f.plausible[0] * 1e-3);
@@ -167,7 +167,13 @@ impl LeastSquaresProblem<f64, Dyn, Dyn> for Problem<'_> {
 /// A candidate fitted to the data.
 #[derive(Debug, Clone)]
 pub struct Fit {
-    pub effect: Effect,
+    pub kind: StepKind,
+    /// The effect added, or whose parameters were re-fitted (None: the base model's).
+    pub effect: Option<Effect>,
+    /// The effect's name, or the base parameter re-fitted.
+    pub name: String,
+    /// What was fitted (the candidate's own parameters, not the carried ones).
+    pub fitted: Vec<Fitted>,
     pub params: Params,
     /// (registry path, fitted value)
     pub values: Vec<(&'static str, f64)>,
@@ -188,9 +194,11 @@ const PATIENCE: usize = 8;
 /// earlier effect that took up part of this one's signature gives it back.
 pub fn fit(target: &Target, base: &Params, c: &Candidate, carried: &[Fitted]) -> Fit {
     let mut start = base.clone();
-    start.effects.set(c.effect, true);
-    for &needed in c.effect.spec().requires {
-        start.effects.set(needed, true);
+    if let (StepKind::Add, Some(e)) = (c.kind, c.effect) {
+        start.effects.set(e, true);
+        for &needed in e.spec().requires {
+            start.effects.set(needed, true);
+        }
     }
     let coords: Vec<Coordinate> = c
         .fitted
@@ -252,7 +260,10 @@ pub fn fit(target: &Target, base: &Params, c: &Candidate, carried: &[Fitted]) ->
         .map(|(c, z)| (c.fitted.path, c.value(*z)))
         .collect();
     Fit {
+        kind: c.kind,
         effect: c.effect,
+        name: c.name(),
+        fitted: c.fitted.clone(),
         gap: (chi2 / problem.r.len().max(1) as f64).sqrt(),
         chi2,
         params,

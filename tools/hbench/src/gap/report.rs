@@ -167,6 +167,8 @@ pub fn write(out: &Path, o: &Outcome, e: &Experiment, m: &Measured) -> Result<()
         "steps": o.steps,
         "initial_gap": o.initial_gap,
         "remaining_gap": o.remaining_gap,
+        "effective_samples": o.effective_samples,
+        "rejected": o.rejected,
         "noise_floor": 1.0,
         "noise_floor_gap": super::NOISE_FLOOR_GAP,
         "noise": noise,
@@ -211,13 +213,33 @@ pub fn write(out: &Path, o: &Outcome, e: &Experiment, m: &Measured) -> Result<()
                 step.brings.join("`, `")
             )
         };
-        let _ = writeln!(md, "\n## Step {}: add `{}`{with}\n", i + 1, step.effect);
-        if let Some(c) = hbmodel::Effect::from_name(&step.effect).and_then(candidate) {
+        let verb = match step.kind {
+            super::effects::StepKind::Add => "add",
+            super::effects::StepKind::Recalibrate => "recalibrate",
+        };
+        let _ = writeln!(md, "\n## Step {}: {verb} `{}`{with}\n", i + 1, step.name);
+        if let Some(c) = hbmodel::Effect::from_name(&step.name).and_then(candidate) {
             let _ = writeln!(md, "Signature of this effect: {}.\n", c.signature);
+        }
+        let n = o.noise.len() as f64 * o.before.time.len() as f64;
+        let _ = writeln!(
+            md,
+            "The residual before this step was worth {:.0} independent samples of its {n:.0} \
+             (correlation time {:.1} samples): scores count the chi-square drop per \
+             independent sample.",
+            step.effective_samples,
+            n / step.effective_samples.max(1.0)
+        );
+        if let Some(p) = &step.preference {
+            let _ = writeln!(
+                md,
+                "Against the runner-up `{}`: ln Bayes factor {:.1}, {}.\n",
+                p.runner_up, p.ln_bayes_factor, p.verdict
+            );
         }
         let _ = writeln!(
             md,
-            "Fitted: {}. Gap {:.2} -> {:.2}.\n\n| candidate | gap after fit | score (chi2 drop - k ln N) | parameters |\n|---|---|---|---|",
+            "Fitted: {}. Gap {:.2} -> {:.2}.\n\n| candidate | gap after fit | score (chi2 drop / tau - k ln(N / tau)) | parameters |\n|---|---|---|---|",
             step.parameters.iter().map(|(k, v)| format!("{k} = {v}")).collect::<Vec<_>>().join(", "),
             step.gap_before,
             step.gap_after
