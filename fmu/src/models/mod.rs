@@ -14,7 +14,7 @@ use std::sync::{Mutex, OnceLock};
 
 use hbmodel::effects::Effect;
 use hbmodel::params::ValveModel;
-use hbmodel::params::{ParamSpec, PARAMS};
+use hbmodel::params::{param, ParamSpec, PARAMS};
 use hbmodel::Params;
 
 use crate::instance::{Component, Instance, Logger};
@@ -276,12 +276,10 @@ pub const FIXED_STEP: &str = "solver.fixed_step";
 
 /// The `solver.fixed_step` parameter (see [`FIXED_STEP`]).
 pub fn fixed_step_parameter<M: HasParams + 'static>() -> VarDef<M> {
-    // the registry declares it (params::PARAMS); the find cannot miss, and the specs are
-    // built at packaging and first instantiation, inside the ABI's panic guard
-    let spec = PARAMS
-        .iter()
-        .find(|spec| spec.path == FIXED_STEP)
-        .expect("solver.fixed_step is in the registry");
+    // the registry declares it (params::PARAMS), so the look-up cannot miss; the specs
+    // are built at packaging and at instantiation, inside the ABI's panic guard
+    // (lib.rs, catch_unwind), and every FMU's packaging test builds them
+    let spec = param(FIXED_STEP).expect("solver.fixed_step is in the registry");
     registry_parameter(spec, FIXED_STEP)
 }
 
