@@ -114,13 +114,16 @@ enum Command {
     /// fitted_model.toml into DIR; never overwrites an input.
     Gap {
         /// Measured data: CSV, header line, first column `time` (s), then bench.fmu
-        /// variables in SI units (y, P1, P2, u1, u2) and the reference column
-        #[arg(long)]
-        data: PathBuf,
+        /// variables in SI units (y, P1, P2, u1, u2) and the reference column. Repeat
+        /// with --experiment for several records of the same bench (a sweep and steps):
+        /// they are fitted jointly and give one answer
+        #[arg(long, required = true)]
+        data: Vec<PathBuf>,
         /// How the data were taken (TOML: mode, supply_pressure, tank_pressure,
-        /// initial_position, [drive] kind = "proportional" (kp, reference) or "open_loop")
-        #[arg(long)]
-        experiment: PathBuf,
+        /// initial_position, [drive] kind = "proportional" (kp, reference) or "open_loop");
+        /// one per --data, in the same order
+        #[arg(long, required = true)]
+        experiment: Vec<PathBuf>,
         /// Starting model (parameter TOML); default: built-in parameters, every effect off
         #[arg(long)]
         model: Option<PathBuf>,

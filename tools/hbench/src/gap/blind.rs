@@ -599,7 +599,7 @@ mod thesis_story {
             let losses = o.model.manifold.loss_scale;
             assert!(losses < 0.25, "the bench has no losses: {losses} {steps:?}");
         }
-        let r = o
+        let r = o.records[0]
             .first
             .resonance
             .clone()

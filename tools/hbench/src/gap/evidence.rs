@@ -57,19 +57,21 @@ pub fn correlation_time(x: &[f64]) -> f64 {
     (raw / (1.0 + 2.0 * lags as f64 / n as f64)).clamp(1.0, n as f64)
 }
 
-/// Effective number of independent samples in a residual made of `blocks` equal series
-/// (one per compared signal), and the factor tau = N / N_eff the chi-square drops are
-/// divided by.
-pub fn effective_samples(residual: &[f64], blocks: usize) -> (f64, f64) {
+/// Effective number of independent samples in a residual made of consecutive series of
+/// the lengths `blocks` (one per compared signal of each record), and the factor
+/// tau = N / N_eff the chi-square drops are divided by.
+pub fn effective_samples(residual: &[f64], blocks: &[usize]) -> (f64, f64) {
     let n = residual.len();
-    if n == 0 || blocks == 0 {
-        return (0.0, 1.0);
+    if n == 0 || blocks.iter().sum::<usize>() != n {
+        return (n as f64, 1.0);
     }
-    let len = n / blocks;
-    let eff: f64 = residual
-        .chunks(len.max(1))
-        .map(|b| b.len() as f64 / correlation_time(b))
-        .sum();
+    let mut eff = 0.0;
+    let mut start = 0;
+    for &len in blocks.iter().filter(|&&l| l > 0) {
+        let b = &residual[start..start + len];
+        eff += len as f64 / correlation_time(b);
+        start += len;
+    }
     (eff, n as f64 / eff)
 }
 
@@ -139,7 +141,7 @@ mod tests {
         let mut rng = rand_pcg::Pcg64::seed_from_u64(3);
         let e = Normal::new(0.0, 1.0).unwrap();
         let white: Vec<f64> = (0..3000).map(|_| e.sample(&mut rng)).collect();
-        let (n_white, _) = effective_samples(&white, 1);
+        let (n_white, _) = effective_samples(&white, &[white.len()]);
         assert!(n_white > 2800.0, "{n_white}");
         for hz in [1.0, 230.0] {
             let ringing: Vec<f64> = white
@@ -147,7 +149,7 @@ mod tests {
                 .enumerate()
                 .map(|(k, w)| w + 3.0 * (k as f64 * 2.0 * std::f64::consts::PI * hz / 1000.0).sin())
                 .collect();
-            let (n, tau) = effective_samples(&ringing, 1);
+            let (n, tau) = effective_samples(&ringing, &[ringing.len()]);
             assert!(n < 30.0 && tau > 100.0, "{hz} Hz: {n} {tau}");
         }
     }

@@ -16,12 +16,36 @@ use super::data::{Experiment, Measured};
 use super::drive::simulate;
 use super::effects::{Candidate, Fitted, StepKind};
 
-/// The data as the fits see it: measurement, experiment, noise per compared signal.
-pub struct Target<'a> {
+/// One record as the fits see it: measurement, experiment, noise per compared signal.
+pub struct Record<'a> {
     pub measured: &'a Measured,
     pub experiment: &'a Experiment,
     /// (signal, noise standard deviation) of the compared signals present in the data.
     pub noise: Vec<(&'static str, f64)>,
+}
+
+impl Record<'_> {
+    /// Residual samples this record contributes.
+    pub fn len(&self) -> usize {
+        self.measured.time.len() * self.noise.len()
+    }
+
+    /// Append the record's noise-normalised residuals of `p`; None if the simulation fails.
+    fn residuals_into(&self, p: &Params, r: &mut Vec<f64>) -> Option<()> {
+        let sim = simulate(p, self.experiment, self.measured).ok()?;
+        for (name, sigma) in &self.noise {
+            let (m, s) = (self.measured.get(name)?, sim.get(name)?);
+            r.extend(m.iter().zip(s).map(|(m, s)| (s - m) / sigma));
+        }
+        Some(())
+    }
+}
+
+/// The data as the fits see it: one or several records (issue 14 item 3: a sweep and
+/// steps of the same bench), fitted jointly. Their normalised residuals are concatenated,
+/// so each record weighs by its samples: every sample counts the same against its noise.
+pub struct Target<'a> {
+    pub records: Vec<Record<'a>>,
 }
 
 /// Residual value given to a simulation that fails: far worse than any fit, so the
@@ -29,14 +53,12 @@ pub struct Target<'a> {
 const FAILED_RESIDUAL: f64 = 1e3;
 
 impl Target<'_> {
-    /// Noise-normalised residuals of a model; None if the simulation fails.
+    /// Noise-normalised residuals of a model, record after record and signal after
+    /// signal; None if a simulation fails.
     pub fn residuals(&self, p: &Params) -> Option<DVector<f64>> {
-        let sim = simulate(p, self.experiment, self.measured).ok()?;
-        let n = self.measured.time.len();
-        let mut r = Vec::with_capacity(n * self.noise.len());
-        for (name, sigma) in &self.noise {
-            let (m, s) = (self.measured.get(name)?, sim.get(name)?);
-            r.extend(m.iter().zip(s).map(|(m, s)| (s - m) / sigma));
+        let mut r = Vec::with_capacity(self.len());
+        for record in &self.records {
+            record.residuals_into(p, &mut r)?;
         }
         r.iter()
             .all(|x| x.is_finite())
@@ -44,7 +66,16 @@ impl Target<'_> {
     }
 
     pub fn len(&self) -> usize {
-        self.measured.time.len() * self.noise.len()
+        self.records.iter().map(Record::len).sum()
+    }
+
+    /// Lengths of the residual's series, one per signal of each record: the residual's
+    /// correlation is estimated within each, never across a boundary.
+    pub fn blocks(&self) -> Vec<usize> {
+        self.records
+            .iter()
+            .flat_map(|r| r.noise.iter().map(|_| r.measured.time.len()))
+            .collect()
     }
 
     /// RMS of the normalised residuals: 1 at the noise floor.

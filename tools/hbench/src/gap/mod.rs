@@ -24,6 +24,9 @@ mod report;
 pub mod resonance;
 pub mod variants;
 
+#[cfg(test)]
+mod tests;
+
 use std::path::{Path, PathBuf};
 
 use hbmodel::Params;
@@ -76,18 +79,40 @@ pub struct Scored {
     pub parameters: serde_json::Map<String, serde_json::Value>,
 }
 
-/// The workflow's result.
-pub struct Outcome {
-    pub steps: Vec<Step>,
+/// One record handed to the workflow: how the bench was driven and what it recorded.
+pub struct Record {
+    /// What the reports call it (the data file's stem).
+    pub name: String,
+    pub experiment: Experiment,
+    pub measured: Measured,
+}
+
+/// What the workflow found on one record: its gaps and where the model disagreed with it,
+/// before and after.
+pub struct RecordOutcome {
+    pub name: String,
+    pub experiment: Experiment,
+    pub measured: Measured,
+    pub noise: Vec<(&'static str, f64)>,
     pub initial_gap: f64,
     pub remaining_gap: f64,
-    pub noise: Vec<(&'static str, f64)>,
-    pub model: Params,
-    pub start: Params,
     pub first: Localisation,
     pub last: Localisation,
     pub before: Traces,
     pub after: Traces,
+}
+
+/// The workflow's result.
+pub struct Outcome {
+    pub steps: Vec<Step>,
+    /// Gaps over all records together (every sample weighs the same).
+    pub initial_gap: f64,
+    pub remaining_gap: f64,
+    pub records: Vec<RecordOutcome>,
+    /// Compared samples over all records.
+    pub samples: usize,
+    pub model: Params,
+    pub start: Params,
     pub verdict: String,
     /// The last round's candidates, none of which was added: why the workflow stopped.
     pub rejected: Vec<Scored>,
@@ -156,42 +181,60 @@ fn fit_all(
     fits
 }
 
-/// Run the workflow on loaded data, with recalibrations within the default bounds.
+/// Run the workflow on one loaded record, with recalibrations within the default bounds.
 pub fn run(
     start: &Params,
     e: &Experiment,
     m: &Measured,
     progress: bool,
 ) -> Result<Outcome, String> {
-    run_with(start, e, m, progress, recalibrate::DEFAULT_FRACTION)
+    let record = Record {
+        name: "record".into(),
+        experiment: e.clone(),
+        measured: m.clone(),
+    };
+    run_with(
+        start,
+        std::slice::from_ref(&record),
+        progress,
+        recalibrate::DEFAULT_FRACTION,
+    )
 }
 
-/// Run the workflow; the base model's parameters may be re-fitted within +-`within` of
-/// their known values (0: no recalibration of them).
+/// Run the workflow on one or several records fitted jointly; the base model's
+/// parameters may be re-fitted within +-`within` of their known values (0: no
+/// recalibration of them).
 pub fn run_with(
     start: &Params,
-    e: &Experiment,
-    m: &Measured,
+    records: &[Record],
     progress: bool,
     within: f64,
 ) -> Result<Outcome, String> {
-    let noise = noise_levels(m);
-    if noise.is_empty() {
-        return Err("the data hold none of y, P1, P2 to compare with".into());
+    let mut parts = Vec::with_capacity(records.len());
+    for r in records {
+        let noise = noise_levels(&r.measured);
+        if noise.is_empty() {
+            return Err(format!(
+                "{}: the data hold none of y, P1, P2 to compare with",
+                r.name
+            ));
+        }
+        parts.push(fit::Record {
+            measured: &r.measured,
+            experiment: &r.experiment,
+            noise,
+        });
     }
-    let target = Target {
-        measured: m,
-        experiment: e,
-        noise: noise.clone(),
-    };
+    if parts.is_empty() {
+        return Err("no record to analyse".into());
+    }
+    let target = Target { records: parts };
     let n = target.len() as f64;
+    let blocks = target.blocks();
     let mut model = start.clone();
-    let before = simulate(&model, e, m)?;
-    let first = localise(m, e, &before, &noise);
     let initial_gap = target.gap(&model);
     let mut gap = initial_gap;
     let mut steps = Vec::new();
-    let mut loc = first.clone();
     let mut carried: Vec<effects::Fitted> = Vec::new();
     let (mut rejected, mut final_effective) = (Vec::new(), n);
     let verdict = loop {
@@ -208,7 +251,7 @@ pub fn run_with(
         // what the residual left by the model so far is worth: a missing effect leaves
         // a coloured residual, whose samples are not independent
         let (effective, tau) = target.residuals(&model).map_or((n, 1.0), |r| {
-            evidence::effective_samples(r.as_slice(), noise.len())
+            evidence::effective_samples(r.as_slice(), &blocks)
         });
         let scored: Vec<(Scored, &Fit)> = fits
             .iter()
@@ -273,30 +316,107 @@ pub fn run_with(
         // a recalibrated parameter is carried too, within its recalibration bounds
         carried.extend(winner.fitted.iter().copied());
         gap = winner.gap;
-        loc = localise(m, e, &simulate(&model, e, m)?, &noise);
     };
-    let after = simulate(&model, e, m)?;
+    let mut outcomes = Vec::with_capacity(records.len());
+    for (r, part) in records.iter().zip(&target.records) {
+        outcomes.push(describe_record(r, part, start, &model)?);
+    }
     Ok(Outcome {
         steps,
         initial_gap,
         remaining_gap: gap,
-        noise,
+        records: outcomes,
+        samples: target.len(),
         model,
         start: start.clone(),
-        first,
-        last: loc,
-        before,
-        after,
         verdict,
         rejected,
         effective_samples: final_effective,
     })
 }
 
+/// One record's gaps and localisation under the starting and the final model.
+fn describe_record(
+    r: &Record,
+    part: &fit::Record,
+    start: &Params,
+    model: &Params,
+) -> Result<RecordOutcome, String> {
+    let (e, m, noise) = (&r.experiment, &r.measured, &part.noise);
+    let before = simulate(start, e, m)?;
+    let after = simulate(model, e, m)?;
+    let alone = Target {
+        records: vec![fit::Record {
+            measured: m,
+            experiment: e,
+            noise: noise.clone(),
+        }],
+    };
+    Ok(RecordOutcome {
+        name: r.name.clone(),
+        experiment: e.clone(),
+        measured: m.clone(),
+        noise: noise.clone(),
+        initial_gap: alone.gap(start),
+        remaining_gap: alone.gap(model),
+        first: localise(m, e, &before, noise),
+        last: localise(m, e, &after, noise),
+        before,
+        after,
+    })
+}
+
+/// The records of a command line: `--data` and `--experiment` paired in order, named by
+/// the data file's stem; when two stems are equal (every `hbench hide` writes
+/// `measured.csv`), by the folder holding the file, and by position when those are equal
+/// too.
+pub fn load_records(data: &[PathBuf], experiments: &[PathBuf]) -> Result<Vec<Record>, String> {
+    if data.is_empty() || data.len() != experiments.len() {
+        return Err(format!(
+            "{} --data and {} --experiment: give one experiment file per data file, in the same order",
+            data.len(),
+            experiments.len()
+        ));
+    }
+    let stem = |p: &Path| {
+        p.file_stem()
+            .map_or("record".into(), |s| s.to_string_lossy().into_owned())
+    };
+    let folder = |p: &Path| {
+        p.canonicalize()
+            .ok()
+            .and_then(|c| {
+                c.parent()?
+                    .file_name()
+                    .map(|f| f.to_string_lossy().into_owned())
+            })
+            .unwrap_or_else(|| stem(p))
+    };
+    let unique = |name: &dyn Fn(&Path) -> String| {
+        let names: Vec<String> = data.iter().map(|d| name(d)).collect();
+        let distinct: std::collections::BTreeSet<&String> = names.iter().collect();
+        (distinct.len() == names.len()).then_some(names)
+    };
+    let names = unique(&stem)
+        .or_else(|| unique(&folder))
+        .unwrap_or_else(|| (1..=data.len()).map(|k| format!("record{k}")).collect());
+    let mut records = Vec::with_capacity(data.len());
+    for ((d, x), name) in data.iter().zip(experiments).zip(names) {
+        let experiment = load_experiment(x)?;
+        let measured = load_measured(d, &experiment)?;
+        records.push(Record {
+            name,
+            experiment,
+            measured,
+        });
+    }
+    Ok(records)
+}
+
 /// `hbench gap`.
 pub fn main(
-    data: &Path,
-    experiment: &Path,
+    data: &[PathBuf],
+    experiments: &[PathBuf],
     model: Option<&Path>,
     out: &Path,
     recalibrate_within: f64,
@@ -306,8 +426,7 @@ pub fn main(
             "--recalibrate-within {recalibrate_within}: a fraction in [0, 1) is expected"
         ));
     }
-    let e = load_experiment(experiment)?;
-    let m = load_measured(data, &e)?;
+    let records = load_records(data, experiments)?;
     let start = match model {
         Some(f) => Params::load(f).map_err(|err| err.to_string())?,
         None => Params::default(),
@@ -315,13 +434,16 @@ pub fn main(
     std::fs::create_dir_all(out)
         .map_err(|err| format!("cannot create {}: {err}", out.display()))?;
     let fitted = out.join("fitted_model.toml");
-    let inputs: Vec<PathBuf> = [Some(data), Some(experiment), model]
-        .into_iter()
-        .flatten()
+    let inputs: Vec<PathBuf> = data
+        .iter()
+        .chain(experiments)
+        .map(PathBuf::as_path)
+        .chain(model)
         .filter_map(|p| p.canonicalize().ok())
         .collect();
-    for f in ["fitted_model.toml", "report.json", "report.md"] {
-        let target = out.join(f);
+    let names: Vec<&str> = records.iter().map(|r| r.name.as_str()).collect();
+    for f in report::outputs(&names) {
+        let target = out.join(&f);
         if target.canonicalize().is_ok_and(|t| inputs.contains(&t)) {
             return Err(format!(
                 "{} is an input: choose another --out",
@@ -329,10 +451,10 @@ pub fn main(
             ));
         }
     }
-    let outcome = run_with(&start, &e, &m, true, recalibrate_within)?;
+    let outcome = run_with(&start, &records, true, recalibrate_within)?;
     std::fs::write(&fitted, outcome.model.to_toml())
         .map_err(|err| format!("cannot write {}: {err}", fitted.display()))?;
-    report::write(out, &outcome, &e, &m)?;
+    report::write(out, &outcome)?;
     for step in &outcome.steps {
         println!(
             "{} {}: gap {:.2} -> {:.2} ({})",

@@ -9,7 +9,7 @@ use serde_json::json;
 use super::analysis::describe;
 use super::data::{Drive, Experiment, Measured};
 use super::effects::candidate;
-use super::Outcome;
+use super::{Outcome, RecordOutcome};
 use crate::plot::{stacked_log_x, time_traces, Line, Panel};
 
 fn line(label: &str, t: &[f64], v: &[f64], scale: f64) -> Line {
@@ -35,8 +35,42 @@ fn unwrap_phase(points: &[(f64, f64)]) -> Vec<(f64, f64)> {
     out
 }
 
-fn figures(out: &Path, o: &Outcome, m: &Measured) -> Result<Vec<String>, String> {
+/// The files a record's figures go to: plain names for a single record, prefixed by the
+/// record's name when there are several.
+fn prefix(names: &[&str], name: &str) -> String {
+    if names.len() > 1 {
+        format!("{name}-")
+    } else {
+        String::new()
+    }
+}
+
+/// Every file the report writes for records `names` (checked against the inputs before
+/// anything is written: a user's file is never overwritten).
+pub fn outputs(names: &[&str]) -> Vec<String> {
+    let mut files: Vec<String> = ["fitted_model.toml", "report.json", "report.md"]
+        .map(String::from)
+        .to_vec();
+    for name in names {
+        let p = prefix(names, name);
+        for f in FIGURE_FILES {
+            files.push(format!("{p}{f}"));
+        }
+    }
+    files
+}
+
+const FIGURE_FILES: [&str; 5] = [
+    "traces.csv",
+    "traces.svg",
+    "residuals.svg",
+    "response.csv",
+    "response.svg",
+];
+
+fn figures(out: &Path, o: &RecordOutcome, p: &str) -> Result<Vec<String>, String> {
     let mut files = Vec::new();
+    let m = &o.measured;
     let t = &m.time;
     let mut traces = Vec::new();
     let mut residuals = Vec::new();
@@ -82,14 +116,18 @@ fn figures(out: &Path, o: &Outcome, m: &Measured) -> Result<Vec<String>, String>
         }
         csv.push('\n');
     }
-    std::fs::write(out.join("traces.csv"), csv).map_err(|err| err.to_string())?;
-    time_traces(&out.join("traces.svg"), "Measured and simulated", &traces)?;
+    std::fs::write(out.join(format!("{p}traces.csv")), csv).map_err(|err| err.to_string())?;
     time_traces(
-        &out.join("residuals.svg"),
-        "Residuals before and after",
+        &out.join(format!("{p}traces.svg")),
+        &format!("Measured and simulated: {}", o.name),
+        &traces,
+    )?;
+    time_traces(
+        &out.join(format!("{p}residuals.svg")),
+        &format!("Residuals before and after: {}", o.name),
         &residuals,
     )?;
-    files.extend(["traces.svg".to_string(), "residuals.svg".to_string()]);
+    files.extend([format!("{p}traces.svg"), format!("{p}residuals.svg")]);
     if let (Some(r0), Some(r1)) = (&o.first.response, &o.last.response) {
         let pick = |v: &[f64]| -> Vec<(f64, f64)> {
             r0.freq
@@ -144,46 +182,22 @@ fn figures(out: &Path, o: &Outcome, m: &Measured) -> Result<Vec<String>, String>
                 r1.simulated_deg[k]
             );
         }
-        std::fs::write(out.join("response.csv"), csv).map_err(|err| err.to_string())?;
+        std::fs::write(out.join(format!("{p}response.csv")), csv).map_err(|err| err.to_string())?;
         stacked_log_x(
-            &out.join("response.svg"),
-            "Frequency response estimates (coherent bins)",
+            &out.join(format!("{p}response.svg")),
+            &format!("Frequency response estimates (coherent bins): {}", o.name),
             "frequency (Hz)",
             &panels,
         )?;
-        files.push("response.svg".into());
+        files.push(format!("{p}response.svg"));
     }
     Ok(files)
 }
 
-pub fn write(out: &Path, o: &Outcome, e: &Experiment, m: &Measured) -> Result<(), String> {
-    let figures = figures(out, o, m)?;
-    let noise: serde_json::Map<_, _> = o
-        .noise
-        .iter()
-        .map(|(k, v)| (k.to_string(), json!(v)))
-        .collect();
-    let report = json!({
-        "steps": o.steps,
-        "initial_gap": o.initial_gap,
-        "remaining_gap": o.remaining_gap,
-        "effective_samples": o.effective_samples,
-        "rejected": o.rejected,
-        "noise_floor": 1.0,
-        "noise_floor_gap": super::NOISE_FLOOR_GAP,
-        "noise": noise,
-        "verdict": o.verdict,
-        "localisation_before": o.first,
-        "localisation_after": o.last,
-        "figures": figures,
-    });
-    let json_text = serde_json::to_string_pretty(&report).map_err(|err| err.to_string())?;
-    std::fs::write(out.join("report.json"), json_text).map_err(|err| err.to_string())?;
-
-    let mut md = String::from("# Model-gap report\n\n");
-    let _ = writeln!(
-        md,
-        "Experiment: mode {}, {}, {} samples at {:.1} ms. Starting model effects: {}.\n",
+/// How a record's bench was driven, in words.
+fn drive(e: &Experiment, m: &Measured) -> String {
+    format!(
+        "mode {}, {}, {} samples at {:.1} ms",
         e.mode,
         match &e.drive {
             Drive::Proportional { kp, reference } =>
@@ -192,6 +206,79 @@ pub fn write(out: &Path, o: &Outcome, e: &Experiment, m: &Measured) -> Result<()
         },
         m.time.len(),
         m.period() * 1e3,
+    )
+}
+
+fn noise_json(noise: &[(&'static str, f64)]) -> serde_json::Map<String, serde_json::Value> {
+    noise
+        .iter()
+        .map(|(k, v)| (k.to_string(), json!(v)))
+        .collect()
+}
+
+pub fn write(out: &Path, o: &Outcome) -> Result<(), String> {
+    let names: Vec<&str> = o.records.iter().map(|r| r.name.as_str()).collect();
+    let mut figures = Vec::new();
+    for r in &o.records {
+        figures.extend(self::figures(out, r, &prefix(&names, &r.name))?);
+    }
+    let records: Vec<serde_json::Value> = o
+        .records
+        .iter()
+        .map(|r| {
+            json!({
+                "name": r.name,
+                "samples": r.measured.time.len(),
+                "noise": noise_json(&r.noise),
+                "initial_gap": r.initial_gap,
+                "remaining_gap": r.remaining_gap,
+                "localisation_before": r.first,
+                "localisation_after": r.last,
+            })
+        })
+        .collect();
+    let mut report = json!({
+        "steps": o.steps,
+        "initial_gap": o.initial_gap,
+        "remaining_gap": o.remaining_gap,
+        "effective_samples": o.effective_samples,
+        "samples": o.samples,
+        "rejected": o.rejected,
+        "noise_floor": 1.0,
+        "noise_floor_gap": super::NOISE_FLOOR_GAP,
+        "records": records,
+        "verdict": o.verdict,
+        "figures": figures,
+    });
+    // a single record keeps the fields of one-record reports at the top level
+    if let [r] = o.records.as_slice() {
+        report["noise"] = json!(noise_json(&r.noise));
+        report["localisation_before"] = json!(r.first);
+        report["localisation_after"] = json!(r.last);
+    }
+    let json_text = serde_json::to_string_pretty(&report).map_err(|err| err.to_string())?;
+    std::fs::write(out.join("report.json"), json_text).map_err(|err| err.to_string())?;
+
+    let mut md = String::from("# Model-gap report\n\n");
+    for r in &o.records {
+        let _ = writeln!(
+            md,
+            "Record `{}`: {}; gap {:.2} -> {:.2}.",
+            r.name,
+            drive(&r.experiment, &r.measured),
+            r.initial_gap,
+            r.remaining_gap
+        );
+    }
+    if o.records.len() > 1 {
+        md.push_str(
+            "\nThe records are fitted jointly: every step is judged on all of them at once, \
+             each sample weighing the same against its own record's noise.\n",
+        );
+    }
+    let _ = writeln!(
+        md,
+        "\nStarting model effects: {}.\n",
         list(o.start.effects.active().map(|x| x.name()))
     );
     let _ = writeln!(
@@ -200,9 +287,12 @@ pub fn write(out: &Path, o: &Outcome, e: &Experiment, m: &Measured) -> Result<()
          (estimated from the data): 1 is the noise floor.\n\n**Result:** gap {:.2} -> {:.2}: {}.\n",
         o.initial_gap, o.remaining_gap, o.verdict
     );
-    md.push_str("## Where the model disagreed with the data\n\n");
-    for s in describe(&o.first) {
-        let _ = writeln!(md, "- {s}");
+    for r in &o.records {
+        let _ = writeln!(md, "## Where the model disagreed with `{}`\n", r.name);
+        for s in describe(&r.first) {
+            let _ = writeln!(md, "- {s}");
+        }
+        md.push('\n');
     }
     for (i, step) in o.steps.iter().enumerate() {
         let with = if step.brings.is_empty() {
@@ -221,7 +311,7 @@ pub fn write(out: &Path, o: &Outcome, e: &Experiment, m: &Measured) -> Result<()
         if let Some(c) = hbmodel::Effect::from_name(&step.name).and_then(candidate) {
             let _ = writeln!(md, "Signature of this effect: {}.\n", c.signature);
         }
-        let n = o.noise.len() as f64 * o.before.time.len() as f64;
+        let n = o.samples as f64;
         let _ = writeln!(
             md,
             "The residual before this step was worth {:.0} independent samples of its {n:.0} \
@@ -261,9 +351,11 @@ pub fn write(out: &Path, o: &Outcome, e: &Experiment, m: &Measured) -> Result<()
             );
         }
     }
-    md.push_str("\n## After\n\n");
-    for s in describe(&o.last) {
-        let _ = writeln!(md, "- {s}");
+    for r in &o.records {
+        let _ = writeln!(md, "\n## After, on `{}`\n", r.name);
+        for s in describe(&r.last) {
+            let _ = writeln!(md, "- {s}");
+        }
     }
     md.push_str("\n## Figures\n\n");
     for f in &figures {

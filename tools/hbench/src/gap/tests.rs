@@ -1,0 +1,91 @@
+//! Several records in one analysis (issue 14 item 3).
+
+use hbmodel::effects::Effect;
+use hbmodel::sensors::SensorParams;
+
+use super::blind::Setup;
+use super::hide::{measure_truth, Kind};
+use super::variants::Simulator;
+use super::{recalibrate, run_with, Outcome, Record};
+
+fn record(s: &Setup, kind: Kind, seed: u64) -> Record {
+    let sp = SensorParams {
+        seed,
+        ..SensorParams::default()
+    };
+    let (experiment, measured) = measure_truth(&s.bench, kind, &sp).expect("the bench runs");
+    Record {
+        name: kind.name().into(),
+        experiment,
+        measured,
+    }
+}
+
+fn analyse(s: &Setup, records: &[Record]) -> Outcome {
+    run_with(&s.known, records, false, recalibrate::DEFAULT_FRACTION).expect("the workflow runs")
+}
+
+/// A 0.3 ms sensor delay hidden in the +-10 mm steps and in the 7th-order moves of the same
+/// bench: each record alone names it; both together must name it too, with a delay no
+/// further from the truth than the worse of the two alone, and leave each record as close
+/// to its noise as its own analysis did (within 10 %: the joint fit serves both). The
+/// joint gap must be the sample-weighted root mean square of the records' gaps (the
+/// residuals are concatenated, each sample in units of its own record's noise).
+#[test]
+fn two_records_fitted_jointly_do_as_well_as_each_alone() {
+    let s = Setup::new(Simulator::Rust, false, &[Effect::SensorDelay], 2);
+    let truth = s.drawn[0].1;
+    let records = [record(&s, Kind::Steps, 2), record(&s, Kind::Moves, 3)];
+    let delay = |o: &Outcome| -> Option<f64> {
+        let first = o.steps.first()?;
+        (first.name == "sensor_delay").then(|| first.parameters["sensors.delay"].as_f64())?
+    };
+    let alone: Vec<Outcome> = records
+        .iter()
+        .map(|r| analyse(&s, std::slice::from_ref(r)))
+        .collect();
+    let both = analyse(&s, &records);
+    let errors: Vec<f64> = alone
+        .iter()
+        .map(|o| (delay(o).expect("each record alone names the delay") / truth - 1.0).abs())
+        .collect();
+    let joint = delay(&both).expect("the two records together name the delay first");
+    let joint_error = (joint / truth - 1.0).abs();
+    assert!(
+        joint_error <= errors[0].max(errors[1]) + 1e-3,
+        "delay {joint} against the truth {truth}: error {joint_error} against {errors:?} alone"
+    );
+    for (r, a) in both.records.iter().zip(&alone) {
+        assert!(
+            r.remaining_gap <= 1.1 * a.remaining_gap,
+            "{}: {} jointly against {} alone",
+            r.name,
+            r.remaining_gap,
+            a.remaining_gap
+        );
+    }
+    let weighted = both
+        .records
+        .iter()
+        .map(|r| r.initial_gap.powi(2) * (r.measured.time.len() * r.noise.len()) as f64)
+        .sum::<f64>()
+        / both.samples as f64;
+    assert!(
+        (weighted.sqrt() / both.initial_gap - 1.0).abs() < 1e-9,
+        "{} against {}",
+        weighted.sqrt(),
+        both.initial_gap
+    );
+}
+
+#[test]
+fn data_and_experiment_files_must_pair() {
+    let d = [std::path::PathBuf::from("a.csv"), "b.csv".into()];
+    let e = [std::path::PathBuf::from("a.toml")];
+    let err = super::load_records(&d, &e)
+        .err()
+        .expect("two data, one experiment");
+    assert!(err.contains("2 --data and 1 --experiment"), "{err}");
+    let err = super::load_records(&[], &[]).err().expect("no record");
+    assert!(err.contains("0 --data"), "{err}");
+}
