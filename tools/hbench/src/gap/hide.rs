@@ -233,7 +233,17 @@ fn raw(truth: &Truth, kind: Kind) -> Result<(Experiment, Vec<[f64; 5]>), String>
         lag_weight(truth.form.pressure_lag),
     );
     let mut rows: Vec<[f64; 5]> = Vec::with_capacity(n);
-    run(&truth.params, &experiment, n, PERIOD, &mut |k, s| {
+    // the bench rests at the first sample's command before the record starts (the lags
+    // start from the first sample they see)
+    let r0 = signal.first().copied().unwrap_or(0.0);
+    let hold = |s: &hbmodel::control::Measurement| {
+        let u = match kp {
+            Some(kp) => kp * (r0 - s.y),
+            None => r0,
+        };
+        [u, -u]
+    };
+    run(&truth.params, &experiment, n, PERIOD, &hold, &mut |k, s| {
         // the sensors' lags: the loop acts on the lagged LVDT, as on a bench whose LVDT
         // conditioner filters
         let lag = |prev: f64, now: f64, w: f64| {

@@ -36,6 +36,19 @@ const BASE: [(&str, &str); 4] = [
     ),
 ];
 
+/// Base parameters whose known value is zero, re-fitted within an absolute band.
+/// The valves' null bias: a servovalve's hydraulic null drifts by up to a few percent of
+/// rated input and is trimmed on the bench (MOOG's null adjust); +-0.3 V is 3 % of the
+/// D765's 10 V, the top of the plausible range `valve_asymmetry` draws SV2's bias from.
+/// In mode 3 a bias common to both valves moves both chamber pressures' null level
+/// together (the peer bench's edge overlaps put it 2.4 bar under ours, measured); SV2
+/// follows SV1's bias unless `valve_asymmetry` is on.
+const ABSOLUTE: [(&str, f64, &str); 1] = [(
+    "sv1.null_bias",
+    0.3,
+    "the valves' hydraulic null off their zero command: both chamber pressures rest higher or lower, the loop holds a small standing error",
+)];
+
 /// The recalibrations open in `model`: each base parameter within +-`fraction` of its
 /// value, and the parameters of each effect already on within the registry's physical
 /// bounds; those in `done` (re-fitted in an earlier step, and carried since) are left out.
@@ -54,6 +67,26 @@ pub fn candidates(model: &Params, fraction: f64, done: &[&str]) -> Vec<Candidate
             (v * (1.0 - fraction)).max(spec.min),
             (v * (1.0 + fraction)).min(spec.max),
         ];
+        out.push(Candidate {
+            kind: StepKind::Recalibrate,
+            effect: None,
+            fitted: vec![Fitted {
+                path,
+                plausible: bounds,
+                log: false,
+                either_sign: false,
+                bounds: Some(bounds),
+            }],
+            signature,
+        });
+    }
+    for (path, half, signature) in ABSOLUTE {
+        let Some(spec) = param(path) else { continue };
+        if done.contains(&path) || fraction <= 0.0 {
+            continue;
+        }
+        let v = spec.get(model);
+        let bounds = [(v - half).max(spec.min), (v + half).min(spec.max)];
         out.push(Candidate {
             kind: StepKind::Recalibrate,
             effect: None,
