@@ -10,12 +10,14 @@
 //! more than MIN_IMPROVEMENT of the gap (`evidence`: a coloured residual is worth fewer
 //! independent samples than it has).
 
+pub mod advice;
 pub mod analysis;
 pub mod blind;
 pub mod data;
 pub mod drive;
 pub mod effects;
 pub mod evidence;
+pub mod experiments;
 pub mod fit;
 pub mod hide;
 pub mod peer;
@@ -93,6 +95,8 @@ pub struct Outcome {
     pub rejected: Vec<Scored>,
     /// Independent samples the final residual is worth (N / tau).
     pub effective_samples: f64,
+    /// Which experiment would tell the leading models apart, when this record cannot.
+    pub advice: Option<advice::Advice>,
 }
 
 /// Noise of every compared signal the data hold.
@@ -194,6 +198,8 @@ pub fn run_with(
     let mut loc = first.clone();
     let mut carried: Vec<effects::Fitted> = Vec::new();
     let (mut rejected, mut final_effective) = (Vec::new(), n);
+    // the last round's tau and (score, fit) of each candidate, for the advice
+    let mut last_round: (f64, Vec<(f64, Fit)>) = (1.0, Vec::new());
     let verdict = loop {
         if steps.len() == MAX_STEPS {
             break format!("stopped after {MAX_STEPS} effects with the gap at {gap:.2}");
@@ -223,6 +229,13 @@ pub fn run_with(
                 (s, f)
             })
             .collect();
+        last_round = (
+            tau,
+            scored
+                .iter()
+                .map(|(s, f)| (s.score, (*f).clone()))
+                .collect(),
+        );
         let best = scored
             .iter()
             .filter(|(s, f)| s.score > 0.0 && f.gap < (1.0 - MIN_IMPROVEMENT) * gap)
@@ -276,6 +289,15 @@ pub fn run_with(
         loc = localise(m, e, &simulate(&model, e, m)?, &noise);
     };
     let after = simulate(&model, e, m)?;
+    let advice = advice::after(
+        &model,
+        &steps,
+        &rejected,
+        gap,
+        &last_round,
+        &noise,
+        progress,
+    );
     Ok(Outcome {
         steps,
         initial_gap,
@@ -290,6 +312,7 @@ pub fn run_with(
         verdict,
         rejected,
         effective_samples: final_effective,
+        advice,
     })
 }
 
@@ -351,6 +374,9 @@ pub fn main(
         );
     }
     println!("{}", outcome.verdict);
+    if let Some(a) = &outcome.advice {
+        println!("what to measure next: {}", a.recommendation);
+    }
     println!(
         "wrote {0}/report.md, {0}/report.json, {0}/fitted_model.toml and the figures",
         out.display()

@@ -176,6 +176,7 @@ pub fn write(out: &Path, o: &Outcome, e: &Experiment, m: &Measured) -> Result<()
         "localisation_before": o.first,
         "localisation_after": o.last,
         "figures": figures,
+        "advice": o.advice,
     });
     let json_text = serde_json::to_string_pretty(&report).map_err(|err| err.to_string())?;
     std::fs::write(out.join("report.json"), json_text).map_err(|err| err.to_string())?;
@@ -264,6 +265,9 @@ pub fn write(out: &Path, o: &Outcome, e: &Experiment, m: &Measured) -> Result<()
     md.push_str("\n## After\n\n");
     for s in describe(&o.last) {
         let _ = writeln!(md, "- {s}");
+    }
+    if let Some(a) = &o.advice {
+        md.push_str(&super::advice::markdown(a));
     }
     md.push_str("\n## Figures\n\n");
     for f in &figures {
