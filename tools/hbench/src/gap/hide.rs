@@ -5,15 +5,12 @@
 //! The bench may carry a model-form error (variants.rs) and may be the independent peer
 //! simulator (peer.rs) instead of the model.
 
-use std::f64::consts::PI;
 use std::path::Path;
 
-use hbmodel::control::scenario::{Signal, KP_SECTION_4_4, SINE_AMPLITUDE};
-use hbmodel::control::trajectory::Trajectory;
 use hbmodel::control::COMMAND_LIMIT;
 use hbmodel::effects::Effect;
 use hbmodel::sensors::{Channel, Sensor, SensorParams};
-use hbmodel::{Mode, Params};
+use hbmodel::Params;
 use rand::{Rng, SeedableRng};
 use rand_pcg::Pcg64;
 use serde_json::json;
@@ -26,109 +23,8 @@ use super::effects::{candidate, Candidate};
 use super::peer;
 use super::variants::{describe, peer_variant, section_4_4, FormError, Simulator, PAYLOAD_RANGE};
 
-/// The experiment types of issue 6.
-#[derive(Debug, Clone, Copy, PartialEq, Eq)]
-pub enum Kind {
-    /// Closed-loop sine sweep 1-300 Hz, 3.4 mm, proportional control (Figs. 4.9-4.14).
-    Sweep,
-    /// +-10 mm steps under proportional control (Fig. 4.8).
-    Steps,
-    /// 7th-order moves -10 -> +10 -> -10 mm under proportional control (section 5.5).
-    Moves,
-    /// Open-loop chirp of the commands around mid stroke.
-    Chirp,
-}
-
-impl Kind {
-    pub const ALL: [Kind; 4] = [Kind::Sweep, Kind::Steps, Kind::Moves, Kind::Chirp];
-
-    pub fn name(self) -> &'static str {
-        match self {
-            Kind::Sweep => "sweep",
-            Kind::Steps => "steps",
-            Kind::Moves => "moves",
-            Kind::Chirp => "chirp",
-        }
-    }
-
-    pub fn parse(s: &str) -> Result<Kind, String> {
-        Kind::ALL
-            .into_iter()
-            .find(|k| k.name() == s)
-            .ok_or_else(|| format!("unknown experiment '{s}'; known: sweep, steps, moves, chirp"))
-    }
-}
-
-/// Sweep: log chirp from 1 to 300 Hz over this time (s). 2.5 s gives about 4 cycles below
-/// 3 Hz, where the loop is quasi-static, and keeps the run short enough for the fits.
-const SWEEP_DURATION: f64 = 2.5;
-const SWEEP_BAND: [f64; 2] = [1.0, 300.0];
-/// Open-loop chirp: 0.3 V on each valve (3 % of rated), 2-200 Hz over 2 s. At 2 Hz that
-/// moves the piston about +-1.5 mm: around mid stroke, far from the stops.
-const CHIRP_COMMAND: f64 = 0.3;
-const CHIRP_BAND: [f64; 2] = [2.0, 200.0];
-const CHIRP_DURATION: f64 = 2.0;
-/// Steps and moves: 1 s, one rise and one fall.
-const STEPS_DURATION: f64 = 0.65;
-const MOVES_DURATION: f64 = 1.0;
-/// The DS1104's 1 kHz sampling (line 5711).
-const PERIOD: f64 = 1e-3;
-
-/// Phase of a logarithmic chirp from f0 to f1 over `duration`.
-fn log_chirp_phase(t: f64, [f0, f1]: [f64; 2], duration: f64) -> f64 {
-    let k = (f1 / f0).ln() / duration;
-    2.0 * PI * f0 * ((k * t).exp() - 1.0) / k
-}
-
-/// The experiment's reference (closed loop) or commands (open loop) at t.
-fn signal(kind: Kind) -> (Experiment, f64, Box<dyn Fn(f64) -> f64>) {
-    let closed = |y0: f64| Experiment {
-        mode: Mode::ThreeWay.number(),
-        supply_pressure: 210e5,
-        tank_pressure: 2e5,
-        initial_position: y0,
-        drive: Drive::Proportional {
-            kp: KP_SECTION_4_4,
-            reference: "y_ref".into(),
-        },
-    };
-    match kind {
-        Kind::Sweep => (
-            closed(0.0),
-            SWEEP_DURATION,
-            Box::new(|t| SINE_AMPLITUDE * log_chirp_phase(t, SWEEP_BAND, SWEEP_DURATION).sin()),
-        ),
-        Kind::Steps => {
-            let s = Signal::Steps {
-                low: -10e-3,
-                high: 10e-3,
-                times: vec![0.05, 0.35],
-            };
-            (
-                closed(-10e-3),
-                STEPS_DURATION,
-                Box::new(move |t| s.at(t)[0]),
-            )
-        }
-        Kind::Moves => {
-            let tr = Trajectory::new(&[(0.1, -10e-3, 10e-3, 0.2), (0.6, 10e-3, -10e-3, 0.2)])
-                .expect("consistent moves");
-            (
-                closed(-10e-3),
-                MOVES_DURATION,
-                Box::new(move |t| tr.at(t)[0]),
-            )
-        }
-        Kind::Chirp => (
-            Experiment {
-                drive: Drive::OpenLoop,
-                ..closed(0.0)
-            },
-            CHIRP_DURATION,
-            Box::new(|t| CHIRP_COMMAND * log_chirp_phase(t, CHIRP_BAND, CHIRP_DURATION).sin()),
-        ),
-    }
-}
+pub use super::experiments::Kind;
+use super::experiments::{Design, PERIOD};
 
 /// A plausible magnitude of each parameter the effect's fit adjusts.
 pub fn draw(c: &Candidate, rng: &mut Pcg64) -> Vec<(&'static str, f64)> {
@@ -215,9 +111,8 @@ fn lag_weight(tau: f64) -> f64 {
 /// Noise-free samples of the bench under the experiment: per sample [reference or
 /// command, y, P1, P2, u1] as the sensors deliver them (after their lags) and as applied.
 fn raw(truth: &Truth, kind: Kind) -> Result<(Experiment, Vec<[f64; 5]>), String> {
-    let (experiment, duration, f) = signal(kind);
-    let n = (duration / PERIOD).round() as usize;
-    let signal: Vec<f64> = (0..n).map(|k| f(k as f64 * PERIOD)).collect();
+    let (experiment, signal) = Design::standard(kind).samples()?;
+    let n = signal.len();
     if let Some(variant) = &truth.peer {
         return Ok((
             experiment.clone(),

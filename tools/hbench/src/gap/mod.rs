@@ -5,17 +5,20 @@
 //! The gap is the RMS of the differences between measured and simulated samples of y, P1
 //! and P2, each in units of its own noise level (estimated from the data): 1 is the noise
 //! floor. A candidate effect wins when its fit lowers the chi-square (the sum of squared
-//! normalised differences), divided by the residual's correlation time tau, by more than
-//! the Bayesian information criterion's price of its parameters, k ln(N / tau), and by
-//! more than MIN_IMPROVEMENT of the gap (`evidence`: a coloured residual is worth fewer
-//! independent samples than it has).
+//! normalised differences) enough to pay the Bayesian information criterion's price of
+//! its parameters, counted in the residual's independent samples N / tau and with the
+//! misfit's own scale (`evidence::score`: a coloured residual is worth fewer independent
+//! samples than it has, and a model far from the data is judged against its misfit, not
+//! against the sensor noise), and by more than MIN_IMPROVEMENT of the gap.
 
+pub mod advice;
 pub mod analysis;
 pub mod blind;
 pub mod data;
 pub mod drive;
 pub mod effects;
 pub mod evidence;
+pub mod experiments;
 pub mod fit;
 pub mod hide;
 pub mod peer;
@@ -118,6 +121,8 @@ pub struct Outcome {
     pub rejected: Vec<Scored>,
     /// Independent samples the final residual is worth (N / tau).
     pub effective_samples: f64,
+    /// Which experiment would tell the leading models apart, when this record cannot.
+    pub advice: Option<advice::Advice>,
 }
 
 /// Noise of every compared signal the data hold.
@@ -237,6 +242,8 @@ pub fn run_with(
     let mut steps = Vec::new();
     let mut carried: Vec<effects::Fitted> = Vec::new();
     let (mut rejected, mut final_effective) = (Vec::new(), n);
+    // the last round's tau and (score, fit) of each candidate, for the advice
+    let mut last_round: (f64, Vec<(f64, Fit)>) = (1.0, Vec::new());
     let verdict = loop {
         if steps.len() == MAX_STEPS {
             break format!("stopped after {MAX_STEPS} effects with the gap at {gap:.2}");
@@ -260,12 +267,19 @@ pub fn run_with(
                 let s = Scored {
                     effect: f.name.clone(),
                     gap: f.gap,
-                    score: (chi2 - f.chi2) / tau - k * effective.ln(),
+                    score: evidence::score(chi2, f.chi2, effective, k),
                     parameters: json_values(&f.values),
                 };
                 (s, f)
             })
             .collect();
+        last_round = (
+            tau,
+            scored
+                .iter()
+                .map(|(s, f)| (s.score, (*f).clone()))
+                .collect(),
+        );
         let best = scored
             .iter()
             .filter(|(s, f)| s.score > 0.0 && f.gap < (1.0 - MIN_IMPROVEMENT) * gap)
@@ -321,6 +335,16 @@ pub fn run_with(
     for (r, part) in records.iter().zip(&target.records) {
         outcomes.push(describe_record(r, part, start, &model)?);
     }
+    // a new record would be read at the sensors' noise the first record shows
+    let advice = advice::after(
+        &model,
+        &steps,
+        &rejected,
+        gap,
+        &last_round,
+        &target.records[0].noise,
+        progress,
+    );
     Ok(Outcome {
         steps,
         initial_gap,
@@ -332,6 +356,7 @@ pub fn run_with(
         verdict,
         rejected,
         effective_samples: final_effective,
+        advice,
     })
 }
 
@@ -473,6 +498,9 @@ pub fn main(
         );
     }
     println!("{}", outcome.verdict);
+    if let Some(a) = &outcome.advice {
+        println!("what to measure next: {}", a.recommendation);
+    }
     println!(
         "wrote {0}/report.md, {0}/report.json, {0}/fitted_model.toml and the figures",
         out.display()

@@ -249,6 +249,7 @@ pub fn write(out: &Path, o: &Outcome) -> Result<(), String> {
         "records": records,
         "verdict": o.verdict,
         "figures": figures,
+        "advice": o.advice,
     });
     // a single record keeps the fields of one-record reports at the top level
     if let [r] = o.records.as_slice() {
@@ -356,6 +357,9 @@ pub fn write(out: &Path, o: &Outcome) -> Result<(), String> {
         for s in describe(&r.last) {
             let _ = writeln!(md, "- {s}");
         }
+    }
+    if let Some(a) = &o.advice {
+        md.push_str(&super::advice::markdown(a));
     }
     md.push_str("\n## Figures\n\n");
     for f in &figures {

@@ -1,0 +1,387 @@
+//! What to measure next (issue 14, item 6). When the record cannot tell the leading
+//! models apart (the best candidates within ln B 3 of each other, or none accepted while
+//! the gap stays above the noise floor), the leading models are simulated, noise-free,
+//! under every experiment design the tools know, and the design that separates the
+//! closest pair most is recommended, with the separation expected at the record's noise.
+//!
+//! For two models a and b and a record of n samples of y, P1, P2 with noise sigma, the
+//! chi-square of the wrong model exceeds that of the right one by
+//! sum(((a - b) / sigma)^2) on average (the noise's own part cancels in expectation), and
+//! the scores of `evidence` divide it by the residual's correlation time tau: the expected
+//! ln Bayes factor is that sum / (2 tau). tau is the one the record showed (at least 1):
+//! the form error that coloured its residual is there on the next record too. It is an
+//! upper bound of what a refit on the new record would show: each candidate's parameters
+//! were fitted to the old record and a refit can take up part of the difference; and the
+//! price of the parameters (k ln(N / tau)) is left out, as between models of equal k.
+
+use hbmodel::control::{Measurement, COMMAND_LIMIT};
+use hbmodel::Params;
+use serde::Serialize;
+
+use super::analysis::sensor_range;
+use super::data::Drive;
+use super::drive::run;
+use super::evidence::CLEAR_LN_BAYES;
+use super::experiments::{Design, PERIOD};
+use super::fit::Fit;
+use super::{Scored, Step, NOISE_FLOOR_GAP};
+
+/// Candidates of the last round compared with the model as it stands: the two best, as
+/// the Bayes factor of `evidence` compares the best with the runner-up.
+pub const LEADING_CANDIDATES: usize = 2;
+/// What the reports call the model as the workflow left it.
+pub const AS_IS: &str = "as is";
+
+/// How far apart two leading models come out under one design.
+#[derive(Debug, Clone, Serialize)]
+pub struct Separation {
+    pub a: String,
+    pub b: String,
+    /// Expected chi-square difference: sum over samples of ((a - b) / sigma)^2.
+    pub chi2: f64,
+    /// RMS of (a - b) / sigma over the samples: the separation in noise levels.
+    pub rms: f64,
+    /// chi2 / (2 tau).
+    pub ln_bayes_factor: f64,
+}
+
+/// One design, assessed.
+#[derive(Debug, Clone, Serialize)]
+pub struct Assessed {
+    pub design: Design,
+    pub label: String,
+    pub pairs: Vec<Separation>,
+    /// Over the pairs: the least expected ln B (None when a simulation failed).
+    pub least_ln_bayes_factor: Option<f64>,
+    /// Why the design could not be assessed (a simulation that failed).
+    pub error: Option<String>,
+}
+
+/// The advice: the designs assessed and the one recommended.
+#[derive(Debug, Clone, Serialize)]
+pub struct Advice {
+    pub leading: Vec<String>,
+    /// Correlation time of the record's residual the evidence is divided by.
+    pub tau: f64,
+    pub designs: Vec<Assessed>,
+    /// Label of the design that separates the closest pair most.
+    pub best: Option<String>,
+    /// Whether that design separates every pair (expected ln B >= CLEAR_LN_BAYES).
+    pub separates: bool,
+    pub recommendation: String,
+}
+
+/// Whether the record left something to tell apart: the run stopped above the noise
+/// floor (something is missing that no candidate explained on this record), or the last
+/// step's winner and runner-up both paid their price and stood within ln B 3 of each
+/// other (two explanations of what the record showed). At the noise floor every rejected
+/// candidate scores about -k ln N and any two are within ln B 3; that is no question the
+/// data raise, and asking it cost 27 simulations per run (measured on the blind sample).
+pub fn needed(steps: &[Step], rejected: &[Scored], gap: f64) -> bool {
+    let contested = steps.last().is_some_and(|s| {
+        s.preference.as_ref().is_some_and(|p| {
+            p.verdict != "clear"
+                && s.candidates
+                    .iter()
+                    .any(|c| c.effect == p.runner_up && c.score > 0.0)
+        })
+    });
+    contested || (!rejected.is_empty() && gap > NOISE_FLOOR_GAP)
+}
+
+/// The model as it stands and the best-scoring candidates of the last round (`round`:
+/// score and fit), leaving out `accepted`, the one the model already is.
+pub fn leading(
+    model: &Params,
+    round: &[(f64, Fit)],
+    accepted: Option<&str>,
+) -> Vec<(String, Params)> {
+    let mut ranked: Vec<&(f64, Fit)> = round
+        .iter()
+        .filter(|(s, f)| s.is_finite() && Some(f.name.as_str()) != accepted)
+        .collect();
+    ranked.sort_by(|a, b| b.0.total_cmp(&a.0));
+    std::iter::once((AS_IS.to_string(), model.clone()))
+        .chain(
+            ranked
+                .into_iter()
+                .take(LEADING_CANDIDATES)
+                .map(|(_, f)| (f.name.clone(), f.params.clone())),
+        )
+        .collect()
+}
+
+/// The advice after a run, when `needed`: the last round's fits and tau.
+pub fn after(
+    model: &Params,
+    steps: &[Step],
+    rejected: &[Scored],
+    gap: f64,
+    (tau, round): &(f64, Vec<(f64, Fit)>),
+    noise: &[(&'static str, f64)],
+    progress: bool,
+) -> Option<Advice> {
+    if !needed(steps, rejected, gap) {
+        return None;
+    }
+    // with nothing rejected the last round's winner is the model as it stands
+    let accepted = steps
+        .last()
+        .filter(|_| rejected.is_empty())
+        .map(|s| s.name.as_str());
+    let leading = leading(model, round, accepted);
+    Some(advise(
+        &leading,
+        noise,
+        *tau,
+        &super::experiments::designs(),
+        progress,
+    ))
+}
+
+/// Noise-free y, P1, P2 of `params` under `design`, as the sensors would read them
+/// (saturating beyond their span), without their noise and lags.
+pub fn simulate(params: &Params, design: &Design) -> Result<Vec<[f64; 3]>, String> {
+    let (experiment, signal) = design.samples()?;
+    let kp = match &experiment.drive {
+        Drive::Proportional { kp, .. } => Some(*kp),
+        Drive::OpenLoop => None,
+    };
+    let law = |r: f64, s: &Measurement| {
+        let u = match kp {
+            Some(kp) => (kp * (r - s.y)).clamp(-COMMAND_LIMIT, COMMAND_LIMIT),
+            None => r,
+        };
+        [u, -u]
+    };
+    let r0 = signal.first().copied().unwrap_or(0.0);
+    let samples = run(
+        params,
+        &experiment,
+        signal.len(),
+        PERIOD,
+        &|s| law(r0, s),
+        &mut |k, s| law(signal.get(k).or(signal.last()).copied().unwrap_or(0.0), s),
+    )?;
+    let clamp = |name: &str, v: f64| {
+        let [lo, hi] = sensor_range(name);
+        v.clamp(lo, hi)
+    };
+    Ok(samples
+        .iter()
+        .map(|(m, _)| [clamp("y", m.y), clamp("P1", m.p1), clamp("P2", m.p2)])
+        .collect())
+}
+
+/// Index of a compared signal in `simulate`'s rows.
+fn column(signal: &str) -> Option<usize> {
+    ["y", "P1", "P2"].iter().position(|s| *s == signal)
+}
+
+/// How far apart `a` and `b` come out at the noise levels `noise`.
+pub fn separation(
+    (na, a): (&str, &[[f64; 3]]),
+    (nb, b): (&str, &[[f64; 3]]),
+    noise: &[(&'static str, f64)],
+    tau: f64,
+) -> Separation {
+    let mut chi2 = 0.0;
+    let mut count = 0usize;
+    for &(name, sigma) in noise {
+        let Some(c) = column(name).filter(|_| sigma > 0.0) else {
+            continue;
+        };
+        chi2 += a
+            .iter()
+            .zip(b)
+            .map(|(x, y)| ((x[c] - y[c]) / sigma).powi(2))
+            .sum::<f64>();
+        count += a.len().min(b.len());
+    }
+    Separation {
+        a: na.to_string(),
+        b: nb.to_string(),
+        chi2,
+        rms: (chi2 / count.max(1) as f64).sqrt(),
+        ln_bayes_factor: chi2 / (2.0 * tau),
+    }
+}
+
+/// Simulate the `leading` models under every design (in parallel) and say which design
+/// separates the closest pair of them most, at the record's `noise` and correlation time
+/// `tau`.
+pub fn advise(
+    leading: &[(String, Params)],
+    noise: &[(&'static str, f64)],
+    tau: f64,
+    designs: &[Design],
+    progress: bool,
+) -> Advice {
+    let tau = if tau.is_finite() { tau.max(1.0) } else { 1.0 };
+    let runs: Vec<(usize, usize)> = (0..designs.len())
+        .flat_map(|d| (0..leading.len()).map(move |m| (d, m)))
+        .collect();
+    let bar = crate::parallel::bar(runs.len(), "advising", progress);
+    let traces = crate::parallel::map(
+        &runs,
+        &bar,
+        |&(d, m)| format!("{} under {}", leading[m].0, designs[d].label()),
+        |&(d, m)| simulate(&leading[m].1, &designs[d]),
+    );
+    let assessed: Vec<Assessed> = designs
+        .iter()
+        .enumerate()
+        .map(|(d, design)| {
+            let runs = &traces[d * leading.len()..(d + 1) * leading.len()];
+            let label = design.label();
+            let sims: Result<Vec<&Vec<[f64; 3]>>, String> = runs
+                .iter()
+                .map(|r| r.as_ref().map_err(Clone::clone))
+                .collect();
+            let sims = match sims {
+                Ok(s) => s,
+                Err(e) => {
+                    return Assessed {
+                        design: *design,
+                        label,
+                        pairs: Vec::new(),
+                        least_ln_bayes_factor: None,
+                        error: Some(e),
+                    }
+                }
+            };
+            let mut pairs = Vec::new();
+            for i in 0..sims.len() {
+                for j in i + 1..sims.len() {
+                    pairs.push(separation(
+                        (&leading[i].0, sims[i]),
+                        (&leading[j].0, sims[j]),
+                        noise,
+                        tau,
+                    ));
+                }
+            }
+            let least = pairs
+                .iter()
+                .map(|p| p.ln_bayes_factor)
+                .min_by(f64::total_cmp);
+            Assessed {
+                design: *design,
+                label,
+                pairs,
+                least_ln_bayes_factor: least,
+                error: None,
+            }
+        })
+        .collect();
+    recommend(leading, tau, assessed)
+}
+
+/// The pair of `a` whose separation is least.
+fn closest(a: &Assessed) -> Option<&Separation> {
+    a.pairs
+        .iter()
+        .min_by(|x, y| x.ln_bayes_factor.total_cmp(&y.ln_bayes_factor))
+}
+
+fn recommend(leading: &[(String, Params)], tau: f64, designs: Vec<Assessed>) -> Advice {
+    let best = designs
+        .iter()
+        .filter(|a| a.least_ln_bayes_factor.is_some())
+        .max_by(|a, b| {
+            a.least_ln_bayes_factor
+                .unwrap_or(0.0)
+                .total_cmp(&b.least_ln_bayes_factor.unwrap_or(0.0))
+        });
+    let (best_label, separates, recommendation) = match best.and_then(|b| Some((b, closest(b)?))) {
+        None => (
+            None,
+            false,
+            "nothing to compare: fewer than two leading models, or every simulation failed".into(),
+        ),
+        Some((b, p)) if p.ln_bayes_factor >= CLEAR_LN_BAYES => (
+            Some(b.label.clone()),
+            true,
+            format!(
+                "measure {}: it separates every pair of the leading models, the closest ({} and {}) by {:.2} noise levels RMS, expected ln B {}",
+                b.label, p.a, p.b, p.rms, number(p.ln_bayes_factor)
+            ),
+        ),
+        Some((b, p)) => (
+            Some(b.label.clone()),
+            false,
+            format!(
+                "none of the experiments separates {} from {} (expected ln B < {CLEAR_LN_BAYES}); the best, {}, reaches ln B {:.2} ({:.3} noise levels RMS)",
+                p.a, p.b, b.label, p.ln_bayes_factor, p.rms
+            ),
+        ),
+    };
+    Advice {
+        leading: leading.iter().map(|(n, _)| n.clone()).collect(),
+        tau,
+        designs,
+        best: best_label,
+        separates,
+        recommendation,
+    }
+}
+
+/// A Bayes factor for a person: 1 decimal, or 3 digits with an exponent when large.
+fn number(x: f64) -> String {
+    if x.abs() < 1e5 {
+        format!("{x:.1}")
+    } else {
+        format!("{x:.2e}")
+    }
+}
+
+/// The report's "What to measure next" section.
+pub fn markdown(a: &Advice) -> String {
+    let mut md = format!(
+        "\n## What to measure next\n\nThis record leaves the leading models undecided: {}. \
+         Each was simulated, noise-free, under every experiment design; the separation is \
+         the RMS difference in noise levels of y, P1, P2, and ln B = chi-square difference \
+         / (2 tau), tau = {:.1} as the record showed.\n\n| design |",
+        a.leading
+            .iter()
+            .map(|n| format!("`{n}`"))
+            .collect::<Vec<_>>()
+            .join(", "),
+        a.tau
+    );
+    let pairs: Vec<String> = a
+        .designs
+        .iter()
+        .find(|d| d.error.is_none())
+        .map(|d| {
+            d.pairs
+                .iter()
+                .map(|p| format!("{} / {}", p.a, p.b))
+                .collect()
+        })
+        .unwrap_or_default();
+    for p in &pairs {
+        md.push_str(&format!(" {p}: RMS, ln B |"));
+    }
+    md.push_str(&format!("\n|---|{}\n", "---|".repeat(pairs.len())));
+    for d in &a.designs {
+        md.push_str(&format!("| {} |", d.label));
+        match &d.error {
+            Some(e) => md.push_str(&format!(
+                " failed: {e} |{}",
+                " |".repeat(pairs.len().saturating_sub(1))
+            )),
+            None => {
+                for p in &d.pairs {
+                    md.push_str(&format!(" {:.3}, {} |", p.rms, number(p.ln_bayes_factor)));
+                }
+            }
+        }
+        md.push('\n');
+    }
+    md.push_str(&format!("\n**Recommendation:** {}.\n", a.recommendation));
+    md
+}
+
+#[cfg(test)]
+mod tests;
