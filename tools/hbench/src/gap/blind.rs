@@ -413,9 +413,6 @@ pub fn main(o: &Options) -> Result<(), String> {
             .into_iter()
             .map(String::from)
             .collect();
-        if !n.iter().any(|x| x == Effect::Payload.name()) {
-            n.push(Effect::Payload.name().into());
-        }
         if form_error || sims.contains(&Simulator::Peer) {
             n.push("none".into());
         }

@@ -21,7 +21,7 @@ use super::data::{Drive, Experiment, Measured};
 use super::drive::run;
 use super::effects::{candidate, Candidate};
 use super::peer;
-use super::variants::{describe, peer_variant, section_4_4, FormError, Simulator, PAYLOAD_RANGE};
+use super::variants::{describe, peer_variant, section_4_4, FormError, Simulator};
 
 pub use super::experiments::Kind;
 use super::experiments::{Design, PERIOD};
@@ -206,23 +206,14 @@ pub fn measure_truth(
     Ok((experiment, Measured { time, columns }))
 }
 
-/// A plausible magnitude of each parameter of a hidden effect: the candidate's ranges,
-/// or for the payload (an operating condition, not yet a candidate) PAYLOAD_RANGE.
+/// A plausible magnitude of each parameter of a hidden effect, from its candidate's
+/// ranges (the payload's is effects::PAYLOAD_RANGE).
 fn draw_hidden(hidden: &[Effect], rng: &mut Pcg64) -> Vec<(&'static str, f64)> {
-    let mut drawn = Vec::new();
-    for &e in hidden {
-        match candidate(e) {
-            Some(c) => drawn.extend(draw(&c, rng)),
-            None => {
-                let [lo, hi] = PAYLOAD_RANGE;
-                drawn.push((
-                    "actuator.payload_mass",
-                    lo + (hi - lo) * rng.random::<f64>(),
-                ));
-            }
-        }
-    }
-    drawn
+    hidden
+        .iter()
+        .filter_map(|&e| candidate(e))
+        .flat_map(|c| draw(&c, rng))
+        .collect()
 }
 
 /// `base` with the hidden effects on at the drawn magnitudes.
@@ -252,9 +243,9 @@ pub fn truth(
     (with_hidden(base, hidden, &drawn), drawn)
 }
 
-/// Effects `hide` can hide: the candidates and the payload.
+/// Effects `hide` can hide: the candidates (the payload among them).
 pub fn hideable(e: Effect) -> bool {
-    candidate(e).is_some() || e == Effect::Payload
+    candidate(e).is_some()
 }
 
 /// `PATH=VALUE` settings of registry parameters, checked against their bounds.

@@ -81,7 +81,6 @@ const LAG_RANGE: [f64; 2] = [0.1e-3, 0.5e-3];
 /// a valve of the same type, +-30 %), and bend of the viscous law (+-30 % at low speed).
 const EDGE_SCALE_RANGE: [f64; 2] = [0.7, 1.3];
 const VISCOUS_BEND_RANGE: [f64; 2] = [-0.3, 0.3];
-pub use super::effects::PAYLOAD_RANGE;
 /// Peer only: the static dry-friction peak relative to the Coulomb level (Stribeck
 /// peak of the Tustin form the peer uses; (4.13)'s shape in the Rust model differs).
 const PEER_STRIBECK_PEAK: f64 = 1.3;
