@@ -191,6 +191,11 @@ enum Command {
         /// Hide every pair of the effects at once instead of one at a time
         #[arg(long)]
         pairs: bool,
+        /// Analyse every experiment's record of a case jointly (one case per effect and
+        /// seed) instead of one case per experiment: `--experiment sweep --experiment
+        /// steps --joint` asks whether two records do at least as well as each alone
+        #[arg(long)]
+        joint: bool,
         /// Benches that make the data: rust, peer (repeat the option; default rust)
         #[arg(long = "simulator", value_parser = gap::variants::Simulator::parse)]
         simulators: Vec<gap::variants::Simulator>,
@@ -329,6 +334,7 @@ fn main() -> ExitCode {
             experiments,
             seeds,
             pairs,
+            joint,
             simulators,
             form_error,
             summarise,
@@ -345,6 +351,7 @@ fn main() -> ExitCode {
                     kinds: &kinds,
                     seeds,
                     pairs,
+                    joint,
                     simulators: &simulators,
                     form_error,
                     out: &out,

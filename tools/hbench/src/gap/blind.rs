@@ -5,7 +5,6 @@
 //! cases and over the identifiable ones; per bench (the model or the peer simulator, with
 //! or without model-form error) when the study holds several.
 
-use std::fmt::Write as _;
 use std::path::Path;
 
 use hbmodel::effects::Effect;
@@ -21,6 +20,11 @@ use super::effects::StepKind;
 use super::hide::{measure_truth, truth, Kind, Truth};
 use super::variants::{section_4_4, FormError, Simulator};
 use super::MIN_IMPROVEMENT;
+
+mod table;
+#[cfg(test)]
+pub use table::table;
+use table::write;
 
 #[derive(Debug, Clone, Serialize, serde::Deserialize)]
 pub struct Case {
@@ -186,29 +190,49 @@ impl Setup {
 /// One case on the Rust model without form error (the CI sample of issue 6).
 #[cfg(test)]
 pub fn case(hidden: &[Effect], kind: Kind, seed: u64) -> Result<Case, String> {
-    case_with(Simulator::Rust, false, hidden, kind, seed)
+    case_with(Simulator::Rust, false, hidden, &[kind], seed)
 }
 
 /// One case on bench `sim`, with or without a drawn model-form error. With one (or on
 /// the peer) the known model is section 4.4's, never the truth's structure, and the
 /// identifiability compares the bench with and without the hidden effects, both with
-/// the same form error.
+/// the same form error. Several `kinds` are records of the same bench analysed jointly
+/// (each with its own noise); the case is identifiable when one of them is, and its
+/// visibility is the largest of theirs.
 pub fn case_with(
     sim: Simulator,
     form_error: bool,
     hidden: &[Effect],
-    kind: Kind,
+    kinds: &[Kind],
     seed: u64,
 ) -> Result<Case, String> {
     let s = Setup::new(sim, form_error, hidden, seed);
     let (base, drawn) = (&s.known, &s.drawn);
-    let sp = SensorParams {
-        seed,
-        ..SensorParams::default()
+    let mut records = Vec::with_capacity(kinds.len());
+    let (mut visible, mut identifiable) = (0.0f64, false);
+    for (i, &kind) in kinds.iter().enumerate() {
+        let sp = SensorParams {
+            // the first record's noise as a single-record case's: joint and single
+            // studies share their first record
+            seed: seed + 1000 * i as u64,
+            ..SensorParams::default()
+        };
+        let (experiment, measured) = measure_truth(&s.bench, kind, &sp)?;
+        records.push(super::Record {
+            name: kind.name().into(),
+            experiment,
+            measured,
+        });
+        let (v, ok) = visibility(&s.without, &s.bench, kind, drawn.len())?;
+        visible = visible.max(v);
+        identifiable |= ok;
+    }
+    // the study scores the naming; the advice has its own tests
+    let settings = super::Settings {
+        advise: false,
+        ..super::Settings::default()
     };
-    let (experiment, measured) = measure_truth(&s.bench, kind, &sp)?;
-    let outcome = super::run(base, &experiment, &measured, false)?;
-    let (visible, identifiable) = visibility(&s.without, &s.bench, kind, drawn.len())?;
+    let outcome = super::run_with(base, &records, settings)?;
     let (path, value) = match drawn.first() {
         Some((p, v)) => (*p, Some(*v)),
         None => ("", None),
@@ -233,7 +257,7 @@ pub fn case_with(
     }
     Ok(Case {
         hidden: all_hidden.iter().map(|e| e.name().to_string()).collect(),
-        experiment: kind.name().into(),
+        experiment: kinds.iter().map(|k| k.name()).collect::<Vec<_>>().join("+"),
         seed,
         // an effect's brought-along requirements are named with it, after it;
         // recalibrations are counted apart
@@ -261,117 +285,6 @@ pub fn case_with(
     })
 }
 
-fn rate(cases: &[&Case], f: impl Fn(&Case) -> bool) -> String {
-    if cases.is_empty() {
-        return "-".into();
-    }
-    let k = cases.iter().filter(|c| f(c)).count();
-    format!(
-        "{:.0} % ({k}/{})",
-        100.0 * k as f64 / cases.len() as f64,
-        cases.len()
-    )
-}
-
-/// The bench a case's data came from, as the table names it.
-fn bench_label(c: &Case) -> String {
-    match (c.simulator.as_str(), c.form_error) {
-        ("rust", false) => String::new(),
-        (s, true) => format!(" ({s}, form error)"),
-        (s, false) => format!(" ({s})"),
-    }
-}
-
-/// Markdown summary: per hidden effect and bench, per bench and overall. Rates are given
-/// over all cases and over the identifiable ones (an ideal fit of the truth would pass
-/// the acceptance rules on that record).
-pub fn table(cases: &[Case]) -> String {
-    let mut md = String::from(
-        "| hidden | cases | first named correctly | all hidden found | fitted within 20 % | median gap closed | identifiable | first named, identifiable | all found, identifiable | fitted within 25 %, identifiable |\n|---|---|---|---|---|---|---|---|---|---|\n",
-    );
-    let label = |c: &Case| {
-        let hidden = if c.hidden.is_empty() {
-            "none".to_string()
-        } else {
-            c.hidden.join(" + ")
-        };
-        hidden + &bench_label(c)
-    };
-    let mut groups: Vec<String> = cases.iter().map(label).collect();
-    groups.dedup();
-    groups.sort();
-    groups.dedup();
-    let row = |md: &mut String, name: &str, sel: Vec<&Case>| {
-        let mut shrink: Vec<f64> = sel.iter().map(|c| c.shrink()).collect();
-        shrink.sort_by(f64::total_cmp);
-        let median = shrink.get(shrink.len() / 2).copied().unwrap_or(f64::NAN);
-        // the cases with an effect hidden whose data show it (recorded ones only)
-        let shown: Vec<&Case> = sel
-            .iter()
-            .copied()
-            .filter(|c| !c.hidden.is_empty() && c.identifiable == Some(true))
-            .collect();
-        let recorded = sel
-            .iter()
-            .filter(|c| !c.hidden.is_empty() && c.identifiable.is_some())
-            .count();
-        let _ = writeln!(
-            md,
-            "| {name} | {} | {} | {} | {} | {:.0} % | {} | {} | {} | {} |",
-            sel.len(),
-            rate(&sel, Case::first_correct),
-            rate(&sel, Case::all_found),
-            rate(
-                &sel.iter()
-                    .copied()
-                    .filter(|c| !c.hidden.is_empty())
-                    .collect::<Vec<_>>(),
-                |c| c.magnitude_error().is_some_and(|e| e <= 0.2)
-            ),
-            100.0 * median,
-            if recorded == 0 {
-                "-".to_string()
-            } else {
-                format!("{}/{recorded}", shown.len())
-            },
-            rate(&shown, Case::first_correct),
-            rate(&shown, Case::all_found),
-            rate(&shown, |c| c.magnitude_error().is_some_and(|e| e <= 0.25)),
-        );
-    };
-    for g in &groups {
-        row(
-            &mut md,
-            g,
-            cases.iter().filter(|c| &label(c) == g).collect(),
-        );
-    }
-    let mut benches: Vec<String> = cases.iter().map(bench_label).collect();
-    benches.sort();
-    benches.dedup();
-    if benches.len() > 1 {
-        for b in &benches {
-            let name = format!("**all{}**", if b.is_empty() { " (rust)" } else { b });
-            row(
-                &mut md,
-                &name,
-                cases.iter().filter(|c| &bench_label(c) == b).collect(),
-            );
-        }
-    }
-    row(&mut md, "**all**", cases.iter().collect());
-    md
-}
-
-fn write(out: &Path, cases: &[Case]) -> Result<String, String> {
-    std::fs::create_dir_all(out).map_err(|e| format!("cannot create {}: {e}", out.display()))?;
-    let md = table(cases);
-    std::fs::write(out.join("blind.md"), &md).map_err(|e| e.to_string())?;
-    let json = serde_json::to_string_pretty(cases).map_err(|e| e.to_string())?;
-    std::fs::write(out.join("blind.json"), json).map_err(|e| e.to_string())?;
-    Ok(md)
-}
-
 /// Tabulate a study's blind.json again (after a change of the table, or to merge runs).
 pub fn summarise(files: &[std::path::PathBuf], out: &Path) -> Result<(), String> {
     let mut cases: Vec<Case> = Vec::new();
@@ -394,6 +307,9 @@ pub struct Options<'a> {
     pub kinds: &'a [Kind],
     pub seeds: u64,
     pub pairs: bool,
+    /// One case per effect and seed with every experiment's record analysed jointly,
+    /// instead of one case per experiment.
+    pub joint: bool,
     /// Benches (empty: the Rust model).
     pub simulators: &'a [Simulator],
     pub form_error: bool,
@@ -445,9 +361,14 @@ pub fn main(o: &Options) -> Result<(), String> {
     let mut jobs = Vec::new();
     for &sim in &sims {
         for set in &sets {
-            for &kind in o.kinds {
+            let groups: Vec<Vec<Kind>> = if o.joint {
+                vec![o.kinds.to_vec()]
+            } else {
+                o.kinds.iter().map(|k| vec![*k]).collect()
+            };
+            for kinds in &groups {
                 for seed in 1..=o.seeds {
-                    jobs.push((sim, set.clone(), kind, seed));
+                    jobs.push((sim, set.clone(), kinds.clone(), seed));
                 }
             }
         }
@@ -455,15 +376,15 @@ pub fn main(o: &Options) -> Result<(), String> {
     let out = o.out;
     let bar = crate::parallel::bar(jobs.len(), "blind study", true);
     let mut cases = Vec::new();
-    for (sim, set, kind, seed) in jobs {
+    for (sim, set, kinds, seed) in jobs {
         let label = format!(
             "{} {} {} #{seed}",
             sim.name(),
             set.iter().map(|e| e.name()).collect::<Vec<_>>().join("+"),
-            kind.name()
+            kinds.iter().map(|k| k.name()).collect::<Vec<_>>().join("+")
         );
         bar.set_message(label.clone());
-        match case_with(sim, form_error, &set, kind, seed) {
+        match case_with(sim, form_error, &set, &kinds, seed) {
             Ok(c) => cases.push(c),
             Err(e) => bar.println(format!("{label}: {e}")),
         }

@@ -187,6 +187,7 @@ fn fit_all(
 }
 
 /// Run the workflow on one loaded record, with recalibrations within the default bounds.
+#[cfg(test)]
 pub fn run(
     start: &Params,
     e: &Experiment,
@@ -201,20 +202,42 @@ pub fn run(
     run_with(
         start,
         std::slice::from_ref(&record),
-        progress,
-        recalibrate::DEFAULT_FRACTION,
+        Settings {
+            progress,
+            ..Settings::default()
+        },
     )
 }
 
-/// Run the workflow on one or several records fitted jointly; the base model's
-/// parameters may be re-fitted within +-`within` of their known values (0: no
-/// recalibration of them).
-pub fn run_with(
-    start: &Params,
-    records: &[Record],
-    progress: bool,
-    within: f64,
-) -> Result<Outcome, String> {
+/// How a run is carried out.
+#[derive(Debug, Clone, Copy)]
+pub struct Settings {
+    /// Progress bars on the terminal.
+    pub progress: bool,
+    /// The base model's parameters may be re-fitted within +-`within` of their known
+    /// values (0: no recalibration of them).
+    pub within: f64,
+    /// Say what to measure next when the record leaves a question (`advice`): up to 27
+    /// more simulations, some of a 5 s sweep; blind studies that only score the naming
+    /// leave it out.
+    pub advise: bool,
+}
+
+impl Default for Settings {
+    fn default() -> Self {
+        Settings {
+            progress: false,
+            within: recalibrate::DEFAULT_FRACTION,
+            advise: true,
+        }
+    }
+}
+
+/// Run the workflow on one or several records fitted jointly.
+pub fn run_with(start: &Params, records: &[Record], settings: Settings) -> Result<Outcome, String> {
+    let Settings {
+        progress, within, ..
+    } = settings;
     let mut parts = Vec::with_capacity(records.len());
     for r in records {
         let noise = noise_levels(&r.measured);
@@ -336,15 +359,20 @@ pub fn run_with(
         outcomes.push(describe_record(r, part, start, &model)?);
     }
     // a new record would be read at the sensors' noise the first record shows
-    let advice = advice::after(
-        &model,
-        &steps,
-        &rejected,
-        gap,
-        &last_round,
-        &target.records[0].noise,
-        progress,
-    );
+    let advice = settings
+        .advise
+        .then(|| {
+            advice::after(
+                &model,
+                &steps,
+                &rejected,
+                gap,
+                &last_round,
+                &target.records[0].noise,
+                progress,
+            )
+        })
+        .flatten();
     Ok(Outcome {
         steps,
         initial_gap,
@@ -476,7 +504,12 @@ pub fn main(
             ));
         }
     }
-    let outcome = run_with(&start, &records, true, recalibrate_within)?;
+    let settings = Settings {
+        progress: true,
+        within: recalibrate_within,
+        advise: true,
+    };
+    let outcome = run_with(&start, &records, settings)?;
     std::fs::write(&fitted, outcome.model.to_toml())
         .map_err(|err| format!("cannot write {}: {err}", fitted.display()))?;
     report::write(out, &outcome)?;

@@ -6,7 +6,7 @@ use hbmodel::sensors::SensorParams;
 use super::blind::Setup;
 use super::hide::{measure_truth, Kind};
 use super::variants::Simulator;
-use super::{recalibrate, run_with, Outcome, Record};
+use super::{run_with, Outcome, Record, Settings};
 
 fn record(s: &Setup, kind: Kind, seed: u64) -> Record {
     let sp = SensorParams {
@@ -22,7 +22,7 @@ fn record(s: &Setup, kind: Kind, seed: u64) -> Record {
 }
 
 fn analyse(s: &Setup, records: &[Record]) -> Outcome {
-    run_with(&s.known, records, false, recalibrate::DEFAULT_FRACTION).expect("the workflow runs")
+    run_with(&s.known, records, Settings::default()).expect("the workflow runs")
 }
 
 /// A 0.3 ms sensor delay hidden in the +-10 mm steps and in the 7th-order moves of the same

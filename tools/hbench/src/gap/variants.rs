@@ -379,9 +379,9 @@ mod tests {
         let mut cases = Vec::new();
         for sim in Simulator::ALL {
             for e in Effect::ALL.into_iter().filter(|e| hideable(*e)) {
-                cases.push(case_with(sim, true, &[e], Kind::Sweep, 1).unwrap());
+                cases.push(case_with(sim, true, &[e], &[Kind::Sweep], 1).unwrap());
             }
-            cases.push(case_with(sim, true, &[], Kind::Sweep, 1).unwrap());
+            cases.push(case_with(sim, true, &[], &[Kind::Sweep], 1).unwrap());
         }
         eprintln!("{}", table(&cases));
         for c in &cases {

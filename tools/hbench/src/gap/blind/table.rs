@@ -1,0 +1,118 @@
+//! The blind study's table: rates per hidden effect and bench, over all cases and over
+//! the identifiable ones.
+
+use std::fmt::Write as _;
+use std::path::Path;
+
+use super::Case;
+
+fn rate(cases: &[&Case], f: impl Fn(&Case) -> bool) -> String {
+    if cases.is_empty() {
+        return "-".into();
+    }
+    let k = cases.iter().filter(|c| f(c)).count();
+    format!(
+        "{:.0} % ({k}/{})",
+        100.0 * k as f64 / cases.len() as f64,
+        cases.len()
+    )
+}
+
+/// The bench a case's data came from, as the table names it.
+fn bench_label(c: &Case) -> String {
+    match (c.simulator.as_str(), c.form_error) {
+        ("rust", false) => String::new(),
+        (s, true) => format!(" ({s}, form error)"),
+        (s, false) => format!(" ({s})"),
+    }
+}
+
+/// Markdown summary: per hidden effect and bench, per bench and overall. Rates are given
+/// over all cases and over the identifiable ones (an ideal fit of the truth would pass
+/// the acceptance rules on that record).
+pub fn table(cases: &[Case]) -> String {
+    let mut md = String::from(
+        "| hidden | cases | first named correctly | all hidden found | fitted within 20 % | median gap closed | identifiable | first named, identifiable | all found, identifiable | fitted within 25 %, identifiable |\n|---|---|---|---|---|---|---|---|---|---|\n",
+    );
+    let label = |c: &Case| {
+        let hidden = if c.hidden.is_empty() {
+            "none".to_string()
+        } else {
+            c.hidden.join(" + ")
+        };
+        hidden + &bench_label(c)
+    };
+    let mut groups: Vec<String> = cases.iter().map(label).collect();
+    groups.dedup();
+    groups.sort();
+    groups.dedup();
+    let row = |md: &mut String, name: &str, sel: Vec<&Case>| {
+        let mut shrink: Vec<f64> = sel.iter().map(|c| c.shrink()).collect();
+        shrink.sort_by(f64::total_cmp);
+        let median = shrink.get(shrink.len() / 2).copied().unwrap_or(f64::NAN);
+        // the cases with an effect hidden whose data show it (recorded ones only)
+        let shown: Vec<&Case> = sel
+            .iter()
+            .copied()
+            .filter(|c| !c.hidden.is_empty() && c.identifiable == Some(true))
+            .collect();
+        let recorded = sel
+            .iter()
+            .filter(|c| !c.hidden.is_empty() && c.identifiable.is_some())
+            .count();
+        let _ = writeln!(
+            md,
+            "| {name} | {} | {} | {} | {} | {:.0} % | {} | {} | {} | {} |",
+            sel.len(),
+            rate(&sel, Case::first_correct),
+            rate(&sel, Case::all_found),
+            rate(
+                &sel.iter()
+                    .copied()
+                    .filter(|c| !c.hidden.is_empty())
+                    .collect::<Vec<_>>(),
+                |c| c.magnitude_error().is_some_and(|e| e <= 0.2)
+            ),
+            100.0 * median,
+            if recorded == 0 {
+                "-".to_string()
+            } else {
+                format!("{}/{recorded}", shown.len())
+            },
+            rate(&shown, Case::first_correct),
+            rate(&shown, Case::all_found),
+            rate(&shown, |c| c.magnitude_error().is_some_and(|e| e <= 0.25)),
+        );
+    };
+    for g in &groups {
+        row(
+            &mut md,
+            g,
+            cases.iter().filter(|c| &label(c) == g).collect(),
+        );
+    }
+    let mut benches: Vec<String> = cases.iter().map(bench_label).collect();
+    benches.sort();
+    benches.dedup();
+    if benches.len() > 1 {
+        for b in &benches {
+            let name = format!("**all{}**", if b.is_empty() { " (rust)" } else { b });
+            row(
+                &mut md,
+                &name,
+                cases.iter().filter(|c| &bench_label(c) == b).collect(),
+            );
+        }
+    }
+    row(&mut md, "**all**", cases.iter().collect());
+    md
+}
+
+pub fn write(out: &Path, cases: &[Case]) -> Result<String, String> {
+    std::fs::create_dir_all(out).map_err(|e| format!("cannot create {}: {e}", out.display()))?;
+    let md = table(cases);
+    std::fs::write(out.join("blind.md"), &md).map_err(|e| e.to_string())?;
+    let json = serde_json::to_string_pretty(cases).map_err(|e| e.to_string())?;
+    std::fs::write(out.join("blind.json"), json).map_err(|e| e.to_string())?;
+    Ok(md)
+}
