@@ -231,6 +231,15 @@ pub fn fit(target: &Target, base: &Params, c: &Candidate, carried: &[Fitted]) ->
             start.effects.set(needed, true);
         }
     }
+    // SV2 recalibrated apart from SV1 becomes its own valve, a copy of SV1 (what it was
+    // while it followed SV1) but for what is fitted
+    let own_sv2 = c.kind == StepKind::Recalibrate
+        && c.fitted.iter().any(|f| f.path.starts_with("sv2."))
+        && !start.has(Effect::ValveAsymmetry);
+    if own_sv2 {
+        start.sv2 = start.sv1.clone();
+        start.effects.set(Effect::ValveAsymmetry, true);
+    }
     let coords: Vec<Coordinate> = c
         .fitted
         .iter()

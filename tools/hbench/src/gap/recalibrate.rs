@@ -4,6 +4,7 @@
 //! modulus, not as entrained air; an effect that is on but far off its true size (an
 //! internal leakage 300 times the thesis's) as a recalibration of that effect.
 
+use hbmodel::effects::Effect;
 use hbmodel::params::param;
 use hbmodel::Params;
 
@@ -48,6 +49,14 @@ const ABSOLUTE: [(&str, f64, &str); 1] = [(
     0.3,
     "the valves' hydraulic null off their zero command: both chamber pressures rest higher or lower, the loop holds a small standing error",
 )];
+
+/// SV2's rated flow against SV1's, while `valve_asymmetry` is off (SV2 then copies SV1):
+/// two valves of one type, each within a few percent of its catalogue flow (the form
+/// error draws +-5 % each), differ by up to 10 %. Fitting it turns SV2 into its own valve
+/// equal to SV1 but for this flow; a null bias of SV2 or a larger gain difference stays
+/// the `valve_asymmetry` effect's. On the peer bench, whose SV2 is drawn apart from SV1,
+/// `valve_asymmetry` was otherwise named on every record (measured, 2026-11-23).
+pub const SV2_FLOW: (&str, f64) = ("sv2.rated_flow", 0.10);
 
 /// The recalibrations open in `model`: each base parameter within +-`fraction` of its
 /// value, and the parameters of each effect already on within the registry's physical
@@ -100,6 +109,23 @@ pub fn candidates(model: &Params, fraction: f64, done: &[&str]) -> Vec<Candidate
             signature,
         });
     }
+    let (path, half) = SV2_FLOW;
+    if fraction > 0.0 && !done.contains(&path) && !model.has(Effect::ValveAsymmetry) {
+        let v = model.sv1.rated_flow;
+        let bounds = [v * (1.0 - half), v * (1.0 + half)];
+        out.push(Candidate {
+            kind: StepKind::Recalibrate,
+            effect: None,
+            fitted: vec![Fitted {
+                path,
+                plausible: bounds,
+                log: false,
+                either_sign: false,
+                bounds: Some(bounds),
+            }],
+            signature: "SV2's flow gain a few percent off SV1's: the two chambers fill at unequal rates, a small drift of the pressures' mean during moves",
+        });
+    }
     for e in model.effects.active() {
         let Some(c) = candidate(e) else { continue };
         if c.fitted.iter().any(|f| done.contains(&f.path)) {
@@ -116,7 +142,6 @@ pub fn candidates(model: &Params, fraction: f64, done: &[&str]) -> Vec<Candidate
 #[cfg(test)]
 mod tests {
     use super::*;
-    use hbmodel::effects::Effect;
 
     #[test]
     fn base_bounds_bracket_the_known_value_and_effects_on_are_offered() {
@@ -135,5 +160,18 @@ mod tests {
         assert!(c.iter().all(|c| c.effect != Some(Effect::DryFriction)));
         let done = candidates(&p, 0.1, &["fluid.bulk_modulus", "sv1.null_leakage"]);
         assert_eq!(done.len(), c.len() - 2);
+    }
+
+    #[test]
+    fn sv2_flow_is_a_recalibration_only_while_sv2_follows_sv1() {
+        let mut p = Params::default();
+        p.sv1.rated_flow = 3.0e-4;
+        let c = candidates(&p, 0.15, &[]);
+        let sv2 = c.iter().find(|c| c.name() == "sv2.rated_flow").unwrap();
+        let [lo, hi] = sv2.fitted[0].bounds.unwrap();
+        assert!((lo / 3.0e-4 - 0.9).abs() < 1e-12 && (hi / 3.0e-4 - 1.1).abs() < 1e-12);
+        p.effects.set(Effect::ValveAsymmetry, true);
+        let c = candidates(&p, 0.15, &[]);
+        assert!(c.iter().all(|c| c.name() != "sv2.rated_flow"));
     }
 }
