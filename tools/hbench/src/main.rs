@@ -196,6 +196,11 @@ enum Command {
         /// steps --joint` asks whether two records do at least as well as each alone
         #[arg(long)]
         joint: bool,
+        /// Put the experiment advice to the test: where the hidden effect was not named
+        /// first, record the bench again under the design the workflow recommends and
+        /// analyse that record alone (blind.md counts how often it then is)
+        #[arg(long)]
+        follow_advice: bool,
         /// Benches that make the data: rust, peer (repeat the option; default rust)
         #[arg(long = "simulator", value_parser = gap::variants::Simulator::parse)]
         simulators: Vec<gap::variants::Simulator>,
@@ -335,6 +340,7 @@ fn main() -> ExitCode {
             seeds,
             pairs,
             joint,
+            follow_advice,
             simulators,
             form_error,
             summarise,
@@ -352,6 +358,7 @@ fn main() -> ExitCode {
                     seeds,
                     pairs,
                     joint,
+                    follow_advice,
                     simulators: &simulators,
                     form_error,
                     out: &out,

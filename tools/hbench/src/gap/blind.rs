@@ -17,7 +17,7 @@ use hbmodel::sensors::SensorParams;
 
 use super::data::COMPARED;
 use super::effects::StepKind;
-use super::hide::{measure_truth, truth, Kind, Truth};
+use super::hide::{measure_design, measure_truth, truth, Kind, Truth};
 use super::variants::{section_4_4, FormError, Simulator};
 use super::MIN_IMPROVEMENT;
 
@@ -60,6 +60,12 @@ pub struct Case {
     /// The form error drawn (variants::FormError::to_json), when there is one.
     #[serde(default)]
     pub form: Option<serde_json::Value>,
+    /// When the study follows the advice and the first record did not name the hidden
+    /// effect first: the design the workflow recommended, and what a record of it named.
+    #[serde(default)]
+    pub advised: Option<String>,
+    #[serde(default)]
+    pub named_after_advice: Option<Vec<String>>,
 }
 
 fn rust_name() -> String {
@@ -199,12 +205,37 @@ pub fn case(hidden: &[Effect], kind: Kind, seed: u64) -> Result<Case, String> {
 /// the same form error. Several `kinds` are records of the same bench analysed jointly
 /// (each with its own noise); the case is identifiable when one of them is, and its
 /// visibility is the largest of theirs.
+#[cfg(test)]
 pub fn case_with(
     sim: Simulator,
     form_error: bool,
     hidden: &[Effect],
     kinds: &[Kind],
     seed: u64,
+) -> Result<Case, String> {
+    case_advised(sim, form_error, hidden, kinds, seed, false)
+}
+
+/// Effects an outcome added, each followed by those it brought along.
+fn named(outcome: &super::Outcome) -> Vec<String> {
+    outcome
+        .steps
+        .iter()
+        .filter(|s| s.kind == StepKind::Add)
+        .flat_map(|s| std::iter::once(&s.name).chain(&s.brings).cloned())
+        .collect()
+}
+
+/// `case_with`, and with `follow` the experiment advice put to the test (issue 14 item
+/// 6): when the hidden effect was not named first, the bench is recorded again under the
+/// design the workflow recommended (new noise) and that record alone is analysed.
+pub fn case_advised(
+    sim: Simulator,
+    form_error: bool,
+    hidden: &[Effect],
+    kinds: &[Kind],
+    seed: u64,
+    follow: bool,
 ) -> Result<Case, String> {
     let s = Setup::new(sim, form_error, hidden, seed);
     let (base, drawn) = (&s.known, &s.drawn);
@@ -227,9 +258,9 @@ pub fn case_with(
         visible = visible.max(v);
         identifiable |= ok;
     }
-    // the study scores the naming; the advice has its own tests
+    // the study scores the naming; the advice only when it is followed
     let settings = super::Settings {
-        advise: false,
+        advise: follow,
         ..super::Settings::default()
     };
     let outcome = super::run_with(base, &records, settings)?;
@@ -255,18 +286,13 @@ pub fn case_with(
             all_hidden.push(*e);
         }
     }
-    Ok(Case {
+    let mut case = Case {
         hidden: all_hidden.iter().map(|e| e.name().to_string()).collect(),
         experiment: kinds.iter().map(|k| k.name()).collect::<Vec<_>>().join("+"),
         seed,
         // an effect's brought-along requirements are named with it, after it;
         // recalibrations are counted apart
-        named: outcome
-            .steps
-            .iter()
-            .filter(|s| s.kind == StepKind::Add)
-            .flat_map(|s| std::iter::once(&s.name).chain(&s.brings).cloned())
-            .collect(),
+        named: named(&outcome),
         recalibrated: outcome
             .steps
             .iter()
@@ -282,8 +308,43 @@ pub fn case_with(
         simulator: sim.name().into(),
         form_error,
         form: form_error.then(|| s.bench.form.to_json()),
-    })
+        advised: None,
+        named_after_advice: None,
+    };
+    let recommended = outcome.advice.as_ref().and_then(|a| {
+        let best = a.best.as_ref()?;
+        a.designs
+            .iter()
+            .find(|d| &d.label == best)
+            .map(|d| d.design)
+    });
+    if let (true, false, Some(design)) = (follow, case.first_correct(), recommended) {
+        let sp = SensorParams {
+            seed: seed + ADVISED_SEED,
+            ..SensorParams::default()
+        };
+        let (experiment, measured) = measure_design(&s.bench, &design, &sp)?;
+        let record = super::Record {
+            name: design.label(),
+            experiment,
+            measured,
+        };
+        let again = super::run_with(
+            base,
+            std::slice::from_ref(&record),
+            super::Settings {
+                advise: false,
+                ..settings
+            },
+        )?;
+        case.advised = Some(design.label());
+        case.named_after_advice = Some(named(&again));
+    }
+    Ok(case)
 }
+
+/// Offset of the advised record's noise seed from the case's: a new record, new noise.
+const ADVISED_SEED: u64 = 2000;
 
 /// Tabulate a study's blind.json again (after a change of the table, or to merge runs).
 pub fn summarise(files: &[std::path::PathBuf], out: &Path) -> Result<(), String> {
@@ -310,6 +371,8 @@ pub struct Options<'a> {
     /// One case per effect and seed with every experiment's record analysed jointly,
     /// instead of one case per experiment.
     pub joint: bool,
+    /// Put the experiment advice to the test on the cases not named first.
+    pub follow_advice: bool,
     /// Benches (empty: the Rust model).
     pub simulators: &'a [Simulator],
     pub form_error: bool,
@@ -384,7 +447,7 @@ pub fn main(o: &Options) -> Result<(), String> {
             kinds.iter().map(|k| k.name()).collect::<Vec<_>>().join("+")
         );
         bar.set_message(label.clone());
-        match case_with(sim, form_error, &set, &kinds, seed) {
+        match case_advised(sim, form_error, &set, &kinds, seed, o.follow_advice) {
             Ok(c) => cases.push(c),
             Err(e) => bar.println(format!("{label}: {e}")),
         }

@@ -237,7 +237,7 @@ pub fn fit(target: &Target, base: &Params, c: &Candidate, carried: &[Fitted]) ->
         && c.fitted.iter().any(|f| f.path.starts_with("sv2."))
         && !start.has(Effect::ValveAsymmetry);
     if own_sv2 {
-        start.sv2 = start.sv1.clone();
+        start.sv2 = start.sv1;
         start.effects.set(Effect::ValveAsymmetry, true);
     }
     let coords: Vec<Coordinate> = c

@@ -110,8 +110,8 @@ fn lag_weight(tau: f64) -> f64 {
 
 /// Noise-free samples of the bench under the experiment: per sample [reference or
 /// command, y, P1, P2, u1] as the sensors deliver them (after their lags) and as applied.
-fn raw(truth: &Truth, kind: Kind) -> Result<(Experiment, Vec<[f64; 5]>), String> {
-    let (experiment, signal) = Design::standard(kind).samples()?;
+fn raw(truth: &Truth, design: &Design) -> Result<(Experiment, Vec<[f64; 5]>), String> {
+    let (experiment, signal) = design.samples()?;
     let n = signal.len();
     if let Some(variant) = &truth.peer {
         return Ok((
@@ -167,13 +167,23 @@ fn raw(truth: &Truth, kind: Kind) -> Result<(Experiment, Vec<[f64; 5]>), String>
     Ok((experiment, rows))
 }
 
-/// Sampled, noisy, quantised data of the bench `truth` under experiment `kind`.
+/// Sampled, noisy, quantised data of the bench `truth` under experiment `kind` as
+/// `hbench hide` records it.
 pub fn measure_truth(
     truth: &Truth,
     kind: Kind,
     sp: &SensorParams,
 ) -> Result<(Experiment, Measured), String> {
-    let (experiment, rows) = raw(truth, kind)?;
+    measure_design(truth, &Design::standard(kind), sp)
+}
+
+/// Sampled, noisy, quantised data of the bench `truth` under `design`.
+pub fn measure_design(
+    truth: &Truth,
+    design: &Design,
+    sp: &SensorParams,
+) -> Result<(Experiment, Measured), String> {
+    let (experiment, rows) = raw(truth, design)?;
     let mut y_s = Sensor::new(sp, Channel::Position, 0);
     let mut p1_s = Sensor::new(sp, Channel::Pressure, 1);
     let mut p2_s = Sensor::new(sp, Channel::Pressure, 2);

@@ -105,7 +105,57 @@ pub fn table(cases: &[Case]) -> String {
         }
     }
     row(&mut md, "**all**", cases.iter().collect());
+    md.push_str(&advice_line(cases));
     md
+}
+
+/// How the followed advice fared (empty when the study did not follow it): of the cases
+/// whose hidden effect was not named first, in how many the workflow recommended an
+/// experiment and a record of it then named the hidden effect first.
+fn advice_line(cases: &[Case]) -> String {
+    let missed: Vec<&Case> = cases
+        .iter()
+        .filter(|c| !c.hidden.is_empty() && !c.first_correct())
+        .collect();
+    let advised: Vec<&Case> = missed
+        .iter()
+        .copied()
+        .filter(|c| c.named_after_advice.is_some())
+        .collect();
+    if advised.is_empty() {
+        return String::new();
+    }
+    let named = |c: &Case| {
+        c.named_after_advice
+            .as_ref()
+            .and_then(|n| n.first())
+            .is_some_and(|n| c.hidden.contains(n))
+    };
+    let mut line = format!(
+        "\nAdvice followed: {} of the {} cases whose hidden effect was not named first got a \
+         recommended experiment; a record of it named the hidden effect first in {}.\n",
+        advised.len(),
+        missed.len(),
+        rate(&advised, named)
+    );
+    for c in advised {
+        let _ = writeln!(
+            line,
+            "- {} ({}, {}): {} -> {}",
+            c.hidden.join("+"),
+            c.experiment,
+            c.simulator,
+            c.advised.as_deref().unwrap_or("-"),
+            c.named_after_advice
+                .as_ref()
+                .map_or("-".into(), |n| if n.is_empty() {
+                    "nothing".into()
+                } else {
+                    n.join(", ")
+                })
+        );
+    }
+    line
 }
 
 pub fn write(out: &Path, cases: &[Case]) -> Result<String, String> {
