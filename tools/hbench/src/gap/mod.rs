@@ -303,10 +303,25 @@ pub fn run_with(start: &Params, records: &[Record], settings: Settings) -> Resul
                 .map(|(s, f)| (s.score, (*f).clone()))
                 .collect(),
         );
-        let best = scored
+        let eligible: Vec<&(Scored, &Fit)> = scored
             .iter()
             .filter(|(s, f)| s.score > 0.0 && f.gap < (1.0 - MIN_IMPROVEMENT) * gap)
-            .max_by(|a, b| a.0.score.total_cmp(&b.0.score));
+            .collect();
+        let top = |kind: Option<effects::StepKind>| {
+            eligible
+                .iter()
+                .filter(|(_, f)| kind.is_none_or(|k| f.kind == k))
+                .max_by(|a, b| a.0.score.total_cmp(&b.0.score))
+                .copied()
+        };
+        // a recalibration the data cannot tell from the best effect is taken instead:
+        // parameters a few percent off are no missing physics (issue 14 item 4)
+        let best = match (top(None), top(Some(effects::StepKind::Recalibrate))) {
+            (Some(b), Some(r)) if r.0.score >= b.0.score - 2.0 * evidence::CLEAR_LN_BAYES => {
+                Some(r)
+            }
+            (b, _) => b,
+        };
         let Some((_, winner)) = best else {
             rejected = scored.iter().map(|(s, _)| s.clone()).collect();
             final_effective = effective;

@@ -50,13 +50,17 @@ const ABSOLUTE: [(&str, f64, &str); 1] = [(
     "the valves' hydraulic null off their zero command: both chamber pressures rest higher or lower, the loop holds a small standing error",
 )];
 
-/// SV2's rated flow against SV1's, while `valve_asymmetry` is off (SV2 then copies SV1):
-/// two valves of one type, each within a few percent of its catalogue flow (the form
-/// error draws +-5 % each), differ by up to 10 %. Fitting it turns SV2 into its own valve
-/// equal to SV1 but for this flow; a null bias of SV2 or a larger gain difference stays
-/// the `valve_asymmetry` effect's. On the peer bench, whose SV2 is drawn apart from SV1,
-/// `valve_asymmetry` was otherwise named on every record (measured, 2026-11-23).
+/// SV2 against SV1, while `valve_asymmetry` is off (SV2 then copies SV1): two valves of
+/// one type, each within a few percent of its catalogue flow (the form error draws +-5 %
+/// each), differ in flow by up to 10 %, and their hydraulic nulls by a few hundredths of
+/// a volt (0.5 % of rated input; `valve_asymmetry` draws SV2's bias from 0.05 V up).
+/// Fitting them turns SV2 into its own valve, equal to SV1 but for these two; a larger
+/// bias or gain difference stays the `valve_asymmetry` effect's. On the peer bench, whose
+/// SV2 is drawn apart from SV1, `valve_asymmetry` was named first on every record with
+/// model-form error (SV2 bias 0.014 V, flow +8 %; measured, 2026-11-23).
 pub const SV2_FLOW: (&str, f64) = ("sv2.rated_flow", 0.10);
+pub const SV2_BIAS: (&str, f64) = ("sv2.null_bias", 0.05);
+const SV2_FLOW_AND_BIAS: [&str; 2] = [SV2_FLOW.0, SV2_BIAS.0];
 
 /// The recalibrations open in `model`: each base parameter within +-`fraction` of its
 /// value, and the parameters of each effect already on within the registry's physical
@@ -109,21 +113,26 @@ pub fn candidates(model: &Params, fraction: f64, done: &[&str]) -> Vec<Candidate
             signature,
         });
     }
-    let (path, half) = SV2_FLOW;
-    if fraction > 0.0 && !done.contains(&path) && !model.has(Effect::ValveAsymmetry) {
-        let v = model.sv1.rated_flow;
-        let bounds = [v * (1.0 - half), v * (1.0 + half)];
+    let sv2_open = !SV2_FLOW_AND_BIAS.iter().any(|p| done.contains(p));
+    if fraction > 0.0 && sv2_open && !model.has(Effect::ValveAsymmetry) {
+        let (flow, half_flow) = SV2_FLOW;
+        let (bias, half_bias) = SV2_BIAS;
+        let (q, b) = (model.sv1.rated_flow, model.sv1.null_bias);
+        let around = |path, bounds: [f64; 2]| Fitted {
+            path,
+            plausible: bounds,
+            log: false,
+            either_sign: false,
+            bounds: Some(bounds),
+        };
         out.push(Candidate {
             kind: StepKind::Recalibrate,
             effect: None,
-            fitted: vec![Fitted {
-                path,
-                plausible: bounds,
-                log: false,
-                either_sign: false,
-                bounds: Some(bounds),
-            }],
-            signature: "SV2's flow gain a few percent off SV1's: the two chambers fill at unequal rates, a small drift of the pressures' mean during moves",
+            fitted: vec![
+                around(flow, [q * (1.0 - half_flow), q * (1.0 + half_flow)]),
+                around(bias, [b - half_bias, b + half_bias]),
+            ],
+            signature: "SV2 a few percent off SV1 (flow gain, null): the chambers fill at unequal rates, P2's rest level differs from P1's",
         });
     }
     for e in model.effects.active() {
@@ -170,6 +179,7 @@ mod tests {
         let sv2 = c.iter().find(|c| c.name() == "sv2.rated_flow").unwrap();
         let [lo, hi] = sv2.fitted[0].bounds.unwrap();
         assert!((lo / 3.0e-4 - 0.9).abs() < 1e-12 && (hi / 3.0e-4 - 1.1).abs() < 1e-12);
+        assert_eq!(sv2.fitted[1].bounds, Some([-0.05, 0.05]));
         p.effects.set(Effect::ValveAsymmetry, true);
         let c = candidates(&p, 0.15, &[]);
         assert!(c.iter().all(|c| c.name() != "sv2.rated_flow"));
