@@ -216,13 +216,24 @@ pub fn case_with(
     case_advised(sim, form_error, hidden, kinds, seed, false)
 }
 
-/// Effects an outcome added, each followed by those it brought along.
-fn named(outcome: &super::Outcome) -> Vec<String> {
+/// Effects an outcome named, in order: each added effect followed by those it brought
+/// along, and a hidden effect already on in the known model (`base`) whose parameters a
+/// step recalibrated: issue 14 names an effect on but far off its true size (a leakage
+/// 300 times the thesis's) as a recalibration of that effect. Other recalibrations are
+/// counted apart (`Case::recalibrated`).
+fn named(outcome: &super::Outcome, base: &Params, hidden: &[Effect]) -> Vec<String> {
+    let on =
+        |name: &str| Effect::from_name(name).is_some_and(|e| base.has(e) && hidden.contains(&e));
     outcome
         .steps
         .iter()
-        .filter(|s| s.kind == StepKind::Add)
-        .flat_map(|s| std::iter::once(&s.name).chain(&s.brings).cloned())
+        .flat_map(|s| match (s.kind, &s.effect) {
+            (StepKind::Add, _) => std::iter::once(s.name.clone())
+                .chain(s.brings.iter().cloned())
+                .collect(),
+            (StepKind::Recalibrate, Some(e)) if on(e) => vec![e.clone()],
+            _ => Vec::new(),
+        })
         .collect()
 }
 
@@ -268,11 +279,16 @@ pub fn case_advised(
         Some((p, v)) => (*p, Some(*v)),
         None => ("", None),
     };
+    // the hidden effect's parameter as added, or as recalibrated when it was on already
     let fitted = outcome
         .steps
         .iter()
-        .filter(|s| s.kind == StepKind::Add)
-        .filter(|s| hidden.first().is_some_and(|h| s.name == h.name()))
+        .filter(|s| match s.kind {
+            StepKind::Add => hidden.first().is_some_and(|h| s.name == h.name()),
+            StepKind::Recalibrate => hidden
+                .first()
+                .is_some_and(|h| base.has(*h) && s.effect.as_deref() == Some(h.name())),
+        })
         .find_map(|s| s.parameters.get(path).and_then(|v| v.as_f64()));
     // an effect that needs others brings them along: they are hidden too
     let mut all_hidden: Vec<Effect> = Vec::new();
@@ -292,7 +308,7 @@ pub fn case_advised(
         seed,
         // an effect's brought-along requirements are named with it, after it;
         // recalibrations are counted apart
-        named: named(&outcome),
+        named: named(&outcome, base, hidden),
         recalibrated: outcome
             .steps
             .iter()
@@ -338,7 +354,7 @@ pub fn case_advised(
             },
         )?;
         case.advised = Some(design.label());
-        case.named_after_advice = Some(named(&again));
+        case.named_after_advice = Some(named(&again, base, hidden));
     }
     Ok(case)
 }
