@@ -284,15 +284,32 @@ fn closest(a: &Assessed) -> Option<&Separation> {
         .min_by(|x, y| x.ln_bayes_factor.total_cmp(&y.ln_bayes_factor))
 }
 
+/// Expected ln B a design must reach to be recommended for its shortness: ten times the
+/// "clear" level, because the expectation is an upper bound (a refit on the new record
+/// takes up part of the difference, and the record's model-form error adds to its
+/// misfit).
+pub const SAFE_LN_BAYES: f64 = 10.0 * CLEAR_LN_BAYES;
+
+/// The shortest design whose closest pair reaches SAFE_LN_BAYES (the cheapest record
+/// that answers the question: a 5 s sweep costs the analysis 5-10 times the steps'
+/// CPU), the farthest-separating one when none does.
 fn recommend(leading: &[(String, Params)], tau: f64, designs: Vec<Assessed>) -> Advice {
-    let best = designs
+    let least = |a: &Assessed| a.least_ln_bayes_factor.unwrap_or(f64::NEG_INFINITY);
+    let safe = designs
         .iter()
-        .filter(|a| a.least_ln_bayes_factor.is_some())
-        .max_by(|a, b| {
-            a.least_ln_bayes_factor
-                .unwrap_or(0.0)
-                .total_cmp(&b.least_ln_bayes_factor.unwrap_or(0.0))
+        .filter(|a| least(a) >= SAFE_LN_BAYES)
+        .min_by(|a, b| {
+            a.design
+                .duration
+                .total_cmp(&b.design.duration)
+                .then(least(b).total_cmp(&least(a)))
         });
+    let best = safe.or_else(|| {
+        designs
+            .iter()
+            .filter(|a| a.least_ln_bayes_factor.is_some())
+            .max_by(|a, b| least(a).total_cmp(&least(b)))
+    });
     let (best_label, separates, recommendation) = match best.and_then(|b| Some((b, closest(b)?))) {
         None => (
             None,
