@@ -107,11 +107,14 @@ enum Command {
         inputs_only: bool,
     },
     /// Model-gap workflow: simulate the model under the measured experiment's drive, find
-    /// where it disagrees with the data (signals, time windows, frequency bands), fit every
-    /// missing registry effect within its physical bounds (Levenberg-Marquardt, in parallel),
-    /// add the one that explains most for its complexity, and repeat until the data are
-    /// explained within their noise. Writes report.md (with SVG figures), report.json and
-    /// fitted_model.toml into DIR; never overwrites an input.
+    /// where it disagrees with the data (signals, time windows, frequency bands, resonance),
+    /// fit every missing registry effect within its physical bounds and every
+    /// recalibration of the known model (Levenberg-Marquardt, in parallel), take the one
+    /// that explains most for its complexity (scores counted in the residual's independent
+    /// samples), and repeat until the data are explained within their noise. Several
+    /// records of one bench are fitted jointly. When the record leaves a question, says
+    /// which experiment would answer it. Writes report.md (with SVG figures), report.json
+    /// and fitted_model.toml into DIR; never overwrites an input.
     Gap {
         /// Measured data: CSV, header line, first column `time` (s), then bench.fmu
         /// variables in SI units (y, P1, P2, u1, u2) and the reference column. Repeat

@@ -60,6 +60,9 @@ pub struct Assessed {
 /// The advice: the designs assessed and the one recommended.
 #[derive(Debug, Clone, Serialize)]
 pub struct Advice {
+    /// Why the record raised a question: undecided leading models, or effects it cannot
+    /// show (`unseen`).
+    pub question: String,
     pub leading: Vec<String>,
     /// Correlation time of the record's residual the evidence is divided by.
     pub tau: f64,
@@ -217,6 +220,18 @@ pub fn advise(
     designs: &[Design],
     progress: bool,
 ) -> Advice {
+    assess(leading, noise, tau, designs, progress, false)
+}
+
+/// `advise`, every pair or (`first_only`) only the first model against each other one.
+fn assess(
+    leading: &[(String, Params)],
+    noise: &[(&'static str, f64)],
+    tau: f64,
+    designs: &[Design],
+    progress: bool,
+    first_only: bool,
+) -> Advice {
     let tau = if tau.is_finite() { tau.max(1.0) } else { 1.0 };
     let runs: Vec<(usize, usize)> = (0..designs.len())
         .flat_map(|d| (0..leading.len()).map(move |m| (d, m)))
@@ -251,7 +266,8 @@ pub fn advise(
                 }
             };
             let mut pairs = Vec::new();
-            for i in 0..sims.len() {
+            let firsts = if first_only { 1 } else { sims.len() };
+            for i in 0..firsts.min(sims.len()) {
                 for j in i + 1..sims.len() {
                     pairs.push(separation(
                         (&leading[i].0, sims[i]),
@@ -334,6 +350,14 @@ fn recommend(leading: &[(String, Params)], tau: f64, designs: Vec<Assessed>) -> 
         ),
     };
     Advice {
+        question: format!(
+            "the record leaves the leading models undecided: {}",
+            leading
+                .iter()
+                .map(|(n, _)| format!("`{n}`"))
+                .collect::<Vec<_>>()
+                .join(", ")
+        ),
         leading: leading.iter().map(|(n, _)| n.clone()).collect(),
         tau,
         designs,
@@ -355,16 +379,11 @@ fn number(x: f64) -> String {
 /// The report's "What to measure next" section.
 pub fn markdown(a: &Advice) -> String {
     let mut md = format!(
-        "\n## What to measure next\n\nThis record leaves the leading models undecided: {}. \
-         Each was simulated, noise-free, under every experiment design; the separation is \
-         the RMS difference in noise levels of y, P1, P2, and ln B = chi-square difference \
+        "\n## What to measure next\n\nOn this record {}. \
+         Each model was simulated, noise-free, under every experiment design; the separation \
+         is the RMS difference in noise levels of y, P1, P2, and ln B = chi-square difference \
          / (2 tau), tau = {:.1} as the record showed.\n\n| design |",
-        a.leading
-            .iter()
-            .map(|n| format!("`{n}`"))
-            .collect::<Vec<_>>()
-            .join(", "),
-        a.tau
+        a.question, a.tau
     );
     let pairs: Vec<String> = a
         .designs
@@ -402,3 +421,4 @@ pub fn markdown(a: &Advice) -> String {
 
 #[cfg(test)]
 mod tests;
+pub mod unseen;

@@ -204,6 +204,8 @@ pub fn run(
         std::slice::from_ref(&record),
         Settings {
             progress,
+            // the blind tests score the naming; the advice has its own
+            advise: false,
             ..Settings::default()
         },
     )
@@ -377,14 +379,16 @@ pub fn run_with(start: &Params, records: &[Record], settings: Settings) -> Resul
     let advice = settings
         .advise
         .then(|| {
-            advice::after(
-                &model,
-                &steps,
-                &rejected,
-                gap,
-                &last_round,
-                &target.records[0].noise,
-                progress,
+            let noise = &target.records[0].noise;
+            advice::after(&model, &steps, &rejected, gap, &last_round, noise, progress).or_else(
+                || {
+                    // explained within the noise: what could the record not have shown?
+                    (gap <= NOISE_FLOOR_GAP)
+                        .then(|| {
+                            advice::unseen::check(&model, &target, noise, last_round.0, progress)
+                        })
+                        .flatten()
+                },
             )
         })
         .flatten();

@@ -1,0 +1,82 @@
+//! What the record cannot show (issue 14 item 6, its second case): when the model
+//! explains a record within its noise, every missing effect the record could not have
+//! shown is still possible. Each candidate effect not in the model is switched on at the
+//! middle of its plausible range and simulated under the record's own drive; those that
+//! would change the record by less than ln B 3 are the record's blind spots, and the
+//! designs are assessed for showing each of them against the model as it stands.
+
+use hbmodel::Params;
+
+use super::super::effects::{self, Candidate, StepKind};
+use super::super::experiments::designs;
+use super::super::fit::Target;
+use super::{assess, Advice};
+use crate::gap::evidence::CLEAR_LN_BAYES;
+
+/// `c` switched on in `model` (with what it requires) at the middle of each parameter's
+/// plausible range: geometric for the log-scaled ones.
+fn at_plausible_middle(model: &Params, c: &Candidate) -> Option<Params> {
+    let e = c.effect?;
+    let mut p = model.clone();
+    p.effects.set(e, true);
+    for &r in e.spec().requires {
+        p.effects.set(r, true);
+    }
+    for f in &c.fitted {
+        let [lo, hi] = f.plausible;
+        let v = if f.log {
+            (lo * hi).sqrt()
+        } else {
+            0.5 * (lo + hi)
+        };
+        hbmodel::params::param(f.path)?.set(&mut p, v);
+    }
+    Some(p)
+}
+
+/// The candidate effects `target`'s records cannot show against `model` at their
+/// plausible sizes: (name, the model with it, expected ln B on the records).
+pub fn blind_spots(model: &Params, target: &Target, tau: f64) -> Vec<(String, Params, f64)> {
+    let Some(base) = target.residuals(model) else {
+        return Vec::new();
+    };
+    effects::all()
+        .into_iter()
+        .filter(|c| c.kind == StepKind::Add && c.effect.is_some_and(|e| !model.has(e)))
+        .filter_map(|c| {
+            let p = at_plausible_middle(model, &c)?;
+            // residuals against the same data: their difference is what the effect changes
+            let r = target.residuals(&p)?;
+            let ln_b = (r - &base).norm_squared() / (2.0 * tau.max(1.0));
+            Some((c.name(), p, ln_b))
+        })
+        .filter(|(_, _, ln_b)| *ln_b < CLEAR_LN_BAYES)
+        .collect()
+}
+
+/// The advice for a record explained within its noise: which design would show the
+/// effects it cannot (None when it could have shown every candidate).
+pub fn check(
+    model: &Params,
+    target: &Target,
+    noise: &[(&'static str, f64)],
+    tau: f64,
+    progress: bool,
+) -> Option<Advice> {
+    let unseen = blind_spots(model, target, tau);
+    if unseen.is_empty() {
+        return None;
+    }
+    let names: Vec<String> = unseen
+        .iter()
+        .map(|(n, _, b)| format!("`{n}` (ln B {b:.1})"))
+        .collect();
+    let mut leading = vec![(super::AS_IS.to_string(), model.clone())];
+    leading.extend(unseen.into_iter().map(|(n, p, _)| (n, p)));
+    let mut advice = assess(&leading, noise, tau, &designs(), progress, true);
+    advice.question = format!(
+        "the model explains the data within their noise, but the record could not have shown {} at plausible sizes",
+        names.join(", ")
+    );
+    Some(advice)
+}
