@@ -62,6 +62,27 @@ pub const SV2_FLOW: (&str, f64) = ("sv2.rated_flow", 0.10);
 pub const SV2_BIAS: (&str, f64) = ("sv2.null_bias", 0.05);
 const SV2_FLOW_AND_BIAS: [&str; 2] = [SV2_FLOW.0, SV2_BIAS.0];
 
+/// A parameter re-fitted within `bounds`, screened over the same span.
+fn within(path: &'static str, bounds: [f64; 2]) -> Fitted {
+    Fitted {
+        path,
+        plausible: bounds,
+        log: false,
+        either_sign: false,
+        bounds: Some(bounds),
+    }
+}
+
+/// A recalibration of the base model's parameters `fitted`.
+fn recalibration(fitted: Vec<Fitted>, signature: &'static str) -> Candidate {
+    Candidate {
+        kind: StepKind::Recalibrate,
+        effect: None,
+        fitted,
+        signature,
+    }
+}
+
 /// The recalibrations open in `model`: each base parameter within +-`fraction` of its
 /// value, and the parameters of each effect already on within the registry's physical
 /// bounds; those in `done` (re-fitted in an earlier step, and carried since) are left out.
@@ -80,18 +101,7 @@ pub fn candidates(model: &Params, fraction: f64, done: &[&str]) -> Vec<Candidate
             (v * (1.0 - fraction)).max(spec.min),
             (v * (1.0 + fraction)).min(spec.max),
         ];
-        out.push(Candidate {
-            kind: StepKind::Recalibrate,
-            effect: None,
-            fitted: vec![Fitted {
-                path,
-                plausible: bounds,
-                log: false,
-                either_sign: false,
-                bounds: Some(bounds),
-            }],
-            signature,
-        });
+        out.push(recalibration(vec![within(path, bounds)], signature));
     }
     for (path, half, signature) in ABSOLUTE {
         let Some(spec) = param(path) else { continue };
@@ -100,40 +110,20 @@ pub fn candidates(model: &Params, fraction: f64, done: &[&str]) -> Vec<Candidate
         }
         let v = spec.get(model);
         let bounds = [(v - half).max(spec.min), (v + half).min(spec.max)];
-        out.push(Candidate {
-            kind: StepKind::Recalibrate,
-            effect: None,
-            fitted: vec![Fitted {
-                path,
-                plausible: bounds,
-                log: false,
-                either_sign: false,
-                bounds: Some(bounds),
-            }],
-            signature,
-        });
+        out.push(recalibration(vec![within(path, bounds)], signature));
     }
     let sv2_open = !SV2_FLOW_AND_BIAS.iter().any(|p| done.contains(p));
     if fraction > 0.0 && sv2_open && !model.has(Effect::ValveAsymmetry) {
         let (flow, half_flow) = SV2_FLOW;
         let (bias, half_bias) = SV2_BIAS;
         let (q, b) = (model.sv1.rated_flow, model.sv1.null_bias);
-        let around = |path, bounds: [f64; 2]| Fitted {
-            path,
-            plausible: bounds,
-            log: false,
-            either_sign: false,
-            bounds: Some(bounds),
-        };
-        out.push(Candidate {
-            kind: StepKind::Recalibrate,
-            effect: None,
-            fitted: vec![
-                around(flow, [q * (1.0 - half_flow), q * (1.0 + half_flow)]),
-                around(bias, [b - half_bias, b + half_bias]),
+        out.push(recalibration(
+            vec![
+                within(flow, [q * (1.0 - half_flow), q * (1.0 + half_flow)]),
+                within(bias, [b - half_bias, b + half_bias]),
             ],
-            signature: "SV2 a few percent off SV1 (flow gain, null): the chambers fill at unequal rates, P2's rest level differs from P1's",
-        });
+            "SV2 a few percent off SV1 (flow gain, null): the chambers fill at unequal rates, P2's rest level differs from P1's",
+        ));
     }
     for e in model.effects.active() {
         let Some(c) = candidate(e) else { continue };
