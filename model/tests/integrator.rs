@@ -3,6 +3,8 @@
 //! bench it integrates against diffsol at rtol 1e-9, and rollback with the carried
 //! Jacobian bit for bit.
 
+mod common;
+
 use hbmodel::control::trajectory::Trajectory;
 use hbmodel::control::{run_closed_loop, Proportional, SAMPLE_PERIOD};
 use hbmodel::solver::adaptive::{self, Memory, Workspace};
@@ -123,26 +125,11 @@ fn observed_order_is_three() {
 /// 0.25 s of a 7th-order -10 -> +10 mm move under 1 kHz P control, mode 3, thesis bench.
 fn move_run(p: &Params, method: Method, rtol: f64) -> (Vec<[f64; 3]>, SolverStats) {
     set_adaptive_method(method);
-    let tr = Trajectory::new(&[(0.02, -0.01, 0.01, 0.1)]).unwrap();
     let mut p = p.clone();
-    p.initial_position = -0.01;
     p.solver.rtol = rtol;
-    let mut sim = Simulation::new(&p).unwrap();
-    let trace = run_closed_loop(
-        &mut sim,
-        &mut Proportional { kp: 1169.0 },
-        &|t| tr.at(t)[0],
-        0.25,
-        SAMPLE_PERIOD,
-        1,
-    )
-    .unwrap();
-    let out = trace
-        .iter()
-        .map(|s| [s.out.y, s.out.p1, s.out.p2])
-        .collect();
+    let run = common::move_run(&p, 0.25);
     set_adaptive_method(Method::FilteredEsdirk34);
-    (out, sim.stats)
+    run
 }
 
 #[test]

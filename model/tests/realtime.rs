@@ -2,31 +2,14 @@
 //! short +-10 mm move under the thesis's 1 kHz proportional control: position within
 //! 1 % of the move amplitude, pressures within 2 bar (issue 13's accuracy criterion).
 
-use hbmodel::control::trajectory::Trajectory;
-use hbmodel::control::{run_closed_loop, Proportional, SAMPLE_PERIOD};
+mod common;
+
 use hbmodel::params::ValveModel;
 use hbmodel::{Mode, Params, Simulation};
 
 /// One 7th-order move from -10 mm to +10 mm in 0.1 s starting at 20 ms, 0.2 s in all.
 fn run(p: &Params) -> (Vec<[f64; 3]>, hbmodel::solver::SolverStats) {
-    let tr = Trajectory::new(&[(0.02, -0.01, 0.01, 0.1)]).unwrap();
-    let mut p = p.clone();
-    p.initial_position = -0.01;
-    let mut sim = Simulation::new(&p).unwrap();
-    let trace = run_closed_loop(
-        &mut sim,
-        &mut Proportional { kp: 1169.0 },
-        &|t| tr.at(t)[0],
-        0.2,
-        SAMPLE_PERIOD,
-        1,
-    )
-    .unwrap();
-    let out = trace
-        .iter()
-        .map(|s| [s.out.y, s.out.p1, s.out.p2])
-        .collect();
-    (out, sim.stats)
+    common::move_run(p, 0.2)
 }
 
 fn compare(p: &Params, step: f64) {

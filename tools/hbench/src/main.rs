@@ -111,7 +111,9 @@ enum Command {
     /// fit every missing registry effect within its physical bounds and every
     /// recalibration of the known model (Levenberg-Marquardt, in parallel), take the one
     /// that explains most for its complexity (scores counted in the residual's independent
-    /// samples), and repeat until the data are explained within their noise. Several
+    /// samples) and, for an added effect, improves data it was not fitted on (the other
+    /// records, or the record's other half), and repeat until the data are explained
+    /// within their noise. Several
     /// records of one bench are fitted jointly. When the record leaves a question, says
     /// which experiment would answer it. Writes report.md (with SVG figures), report.json
     /// and fitted_model.toml into DIR; never overwrites an input.

@@ -3,6 +3,8 @@
 
 use std::path::Path;
 
+use plotters::coord::ranged1d::ValueFormatter;
+use plotters::coord::types::RangedCoordf64;
 use plotters::prelude::*;
 
 /// One line of a panel.
@@ -69,37 +71,64 @@ pub fn stacked(path: &Path, title: &str, x_desc: &str, panels: &[Panel]) -> Resu
     let (t0, t1) = bounds(panels);
     for (area, panel) in root.split_evenly((panels.len(), 1)).iter().zip(panels) {
         let (lo, hi) = range(&panel.lines);
-        let mut chart = ChartBuilder::on(area)
+        let chart = ChartBuilder::on(area)
             .margin(8)
             .x_label_area_size(30)
             .y_label_area_size(70)
             .build_cartesian_2d(t0..t1, lo..hi)
             .map_err(|e| fail(&e))?;
-        chart
-            .configure_mesh()
-            .x_desc(x_desc)
-            .y_desc(panel.title.as_str())
-            .light_line_style(WHITE.mix(0.0))
-            .draw()
-            .map_err(|e| fail(&e))?;
-        for (k, line) in panel.lines.iter().enumerate() {
-            let color = Palette99::pick(k).to_rgba();
-            chart
-                .draw_series(LineSeries::new(line.points.iter().copied(), &color))
-                .map_err(|e| fail(&e))?
-                .label(line.label.as_str())
-                .legend(move |(x, y)| PathElement::new([(x, y), (x + 16, y)], color));
-        }
-        if panel.lines.len() > 1 {
-            chart
-                .configure_series_labels()
-                .background_style(WHITE.mix(0.8))
-                .border_style(BLACK)
-                .draw()
-                .map_err(|e| fail(&e))?;
-        }
+        let style = Style {
+            x_desc,
+            grid: WHITE.mix(0.0),
+            legend: SeriesLabelPosition::MiddleRight,
+        };
+        draw_panel(chart, panel, style, |_| true).map_err(|e| fail(&e))?;
     }
     root.present().map_err(|e| fail(&e))
+}
+
+/// How a panel of `stacked` or `stacked_log_x` is dressed.
+struct Style<'a> {
+    x_desc: &'a str,
+    grid: RGBAColor,
+    legend: SeriesLabelPosition,
+}
+
+/// Draw a panel's mesh, its lines (the points `keep` accepts) and, for several lines,
+/// their legend, on a chart whose x axis is linear or logarithmic.
+fn draw_panel<'a, DB, X>(
+    mut chart: ChartContext<'a, DB, Cartesian2d<X, RangedCoordf64>>,
+    panel: &Panel,
+    style: Style,
+    keep: impl Fn(f64) -> bool,
+) -> Result<(), DrawingAreaErrorKind<DB::ErrorType>>
+where
+    DB: DrawingBackend + 'a,
+    X: Ranged<ValueType = f64> + ValueFormatter<f64>,
+{
+    chart
+        .configure_mesh()
+        .x_desc(style.x_desc)
+        .y_desc(panel.title.as_str())
+        .light_line_style(style.grid)
+        .draw()?;
+    for (k, line) in panel.lines.iter().enumerate() {
+        let color = Palette99::pick(k).to_rgba();
+        let points = line.points.iter().copied().filter(|q| keep(q.0));
+        chart
+            .draw_series(LineSeries::new(points, &color))?
+            .label(line.label.as_str())
+            .legend(move |(x, y)| PathElement::new([(x, y), (x + 16, y)], color));
+    }
+    if panel.lines.len() > 1 {
+        chart
+            .configure_series_labels()
+            .position(style.legend)
+            .background_style(WHITE.mix(0.8))
+            .border_style(BLACK)
+            .draw()?;
+    }
+    Ok(())
 }
 
 /// Write the panels stacked into an SVG file against a shared, logarithmic x quantity (a
@@ -127,37 +156,18 @@ pub fn stacked_log_x(
     };
     for (area, panel) in root.split_evenly((panels.len(), 1)).iter().zip(panels) {
         let (lo, hi) = range(&panel.lines);
-        let mut chart = ChartBuilder::on(area)
+        let chart = ChartBuilder::on(area)
             .margin(8)
             .x_label_area_size(30)
             .y_label_area_size(70)
             .build_cartesian_2d((x0..x1).log_scale(), lo..hi)
             .map_err(|e| fail(&e))?;
-        chart
-            .configure_mesh()
-            .x_desc(x_desc)
-            .y_desc(panel.title.as_str())
-            .light_line_style(BLACK.mix(0.08))
-            .draw()
-            .map_err(|e| fail(&e))?;
-        for (k, line) in panel.lines.iter().enumerate() {
-            let color = Palette99::pick(k).to_rgba();
-            let points = line.points.iter().copied().filter(|q| q.0 > 0.0);
-            chart
-                .draw_series(LineSeries::new(points, &color))
-                .map_err(|e| fail(&e))?
-                .label(line.label.as_str())
-                .legend(move |(x, y)| PathElement::new([(x, y), (x + 16, y)], color));
-        }
-        if panel.lines.len() > 1 {
-            chart
-                .configure_series_labels()
-                .position(SeriesLabelPosition::LowerLeft)
-                .background_style(WHITE.mix(0.8))
-                .border_style(BLACK)
-                .draw()
-                .map_err(|e| fail(&e))?;
-        }
+        let style = Style {
+            x_desc,
+            grid: BLACK.mix(0.08),
+            legend: SeriesLabelPosition::LowerLeft,
+        };
+        draw_panel(chart, panel, style, |x| x > 0.0).map_err(|e| fail(&e))?;
     }
     root.present().map_err(|e| fail(&e))
 }

@@ -14,16 +14,14 @@
 //! were fitted to the old record and a refit can take up part of the difference; and the
 //! price of the parameters (k ln(N / tau)) is left out, as between models of equal k.
 
-use hbmodel::control::{Measurement, COMMAND_LIMIT};
 use hbmodel::Params;
 use serde::Serialize;
 
 use super::analysis::sensor_range;
-use super::data::Drive;
-use super::drive::run;
 use super::evidence::CLEAR_LN_BAYES;
-use super::experiments::{Design, PERIOD};
+use super::experiments::Design;
 use super::fit::Fit;
+use super::hide::{raw, Truth};
 use super::{Scored, Step, NOISE_FLOOR_GAP};
 
 /// Candidates of the last round compared with the model as it stands: the two best, as
@@ -143,36 +141,17 @@ pub fn after(
 }
 
 /// Noise-free y, P1, P2 of `params` under `design`, as the sensors would read them
-/// (saturating beyond their span), without their noise and lags.
+/// (saturating beyond their span), without their noise and lags: the records `hbench hide`
+/// would make of the model, before the noise.
 pub fn simulate(params: &Params, design: &Design) -> Result<Vec<[f64; 3]>, String> {
-    let (experiment, signal) = design.samples()?;
-    let kp = match &experiment.drive {
-        Drive::Proportional { kp, .. } => Some(*kp),
-        Drive::OpenLoop => None,
-    };
-    let law = |r: f64, s: &Measurement| {
-        let u = match kp {
-            Some(kp) => (kp * (r - s.y)).clamp(-COMMAND_LIMIT, COMMAND_LIMIT),
-            None => r,
-        };
-        [u, -u]
-    };
-    let r0 = signal.first().copied().unwrap_or(0.0);
-    let samples = run(
-        params,
-        &experiment,
-        signal.len(),
-        PERIOD,
-        &|s| law(r0, s),
-        &mut |k, s| law(signal.get(k).or(signal.last()).copied().unwrap_or(0.0), s),
-    )?;
+    let (_, rows) = raw(&Truth::rust(params.clone()), design)?;
     let clamp = |name: &str, v: f64| {
         let [lo, hi] = sensor_range(name);
         v.clamp(lo, hi)
     };
-    Ok(samples
+    Ok(rows
         .iter()
-        .map(|(m, _)| [clamp("y", m.y), clamp("P1", m.p1), clamp("P2", m.p2)])
+        .map(|&[_, y, p1, p2, _]| [clamp("y", y), clamp("P1", p1), clamp("P2", p2)])
         .collect())
 }
 

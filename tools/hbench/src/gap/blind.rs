@@ -66,6 +66,9 @@ pub struct Case {
     pub advised: Option<String>,
     #[serde(default)]
     pub named_after_advice: Option<Vec<String>>,
+    /// Effects that won a round but were refused on the data they were not fitted on.
+    #[serde(default)]
+    pub refused: Vec<String>,
 }
 
 fn rust_name() -> String {
@@ -326,6 +329,7 @@ pub fn case_advised(
         form: form_error.then(|| s.bench.form.to_json()),
         advised: None,
         named_after_advice: None,
+        refused: outcome.refusals.iter().map(|v| v.effect.clone()).collect(),
     };
     let recommended = outcome.advice.as_ref().and_then(|a| {
         let best = a.best.as_ref()?;
@@ -479,135 +483,6 @@ pub fn main(o: &Options) -> Result<(), String> {
 }
 
 #[cfg(test)]
-mod tests {
-    //! The CI sample of the blind study: every candidate effect hidden once, on the
-    //! cheapest experiment that shows it (`ci_experiment`), plus nothing hidden, two effects
-    //! at once and the thesis's chapter-4 story. `hbench blind` runs the full study.
-
-    use super::*;
-
-    /// The experiment of each effect's CI case: the cheapest that shows it, measured
-    /// (`hbench blind --effect E --experiment K --seeds 1`, CPU s for the whole case):
-    /// on the steps every effect was named first and fitted within 2 % in 3-45 s
-    /// (manifold losses, which bring the passages, 45 s); the same cases on the sweep
-    /// took 53-566 s (the sweep keeps the passages' fast oil columns ringing). Viscous
-    /// friction runs on the chirp (30 s), so open-loop data are in the sample; the sweep
-    /// is in `two_hidden_effects_are_both_found` and the chapter-4 story, the moves and
-    /// the chirp again in `with_nothing_hidden_nothing_is_added`. `hbench blind` runs
-    /// every effect on every experiment.
-    fn ci_experiment(e: Effect) -> Kind {
-        match e {
-            Effect::ViscousFriction => Kind::Chirp,
-            _ => Kind::Steps,
-        }
-    }
-
-    fn check(c: &Case) {
-        assert!(c.first_correct(), "{c:?}");
-        assert!(
-            c.shrink() >= 0.7,
-            "gap closed only {:.0} %: {c:?}",
-            100.0 * c.shrink()
-        );
-    }
-
-    #[test]
-    fn every_hidden_effect_is_named_first_and_fitted() {
-        let mut cases = Vec::new();
-        for e in super::super::effects::all().iter().filter_map(|c| c.effect) {
-            cases.push(case(&[e], ci_experiment(e), 1).unwrap());
-        }
-        for c in &cases {
-            check(c);
-            // manifold losses bring the passages' volume and inertia along: three
-            // effects hidden at once, whose shares of the fit trade against each other
-            if c.hidden.len() == 1 {
-                let err = c
-                    .magnitude_error()
-                    .expect("the named effect carries its fit");
-                assert!(
-                    err <= 0.2,
-                    "fitted {:?} against {:?}: {c:?}",
-                    c.fitted,
-                    c.truth
-                );
-            }
-        }
-    }
-
-    #[test]
-    fn with_nothing_hidden_nothing_is_added() {
-        for kind in [Kind::Moves, Kind::Chirp] {
-            let c = case(&[], kind, 2).unwrap();
-            assert!(c.named.is_empty(), "{c:?}");
-            assert!(c.remaining_gap <= super::super::NOISE_FLOOR_GAP, "{c:?}");
-        }
-    }
-
-    #[test]
-    fn two_hidden_effects_are_both_found() {
-        let c = case(&[Effect::SensorDelay, Effect::DryFriction], Kind::Sweep, 3).unwrap();
-        assert!(c.all_found(), "{c:?}");
-        assert!(c.shrink() >= 0.7, "{c:?}");
-    }
-}
-
+mod tests;
 #[cfg(test)]
-mod thesis_story {
-    //! Chapter 4's story told by the tool: the model without the manifold misses the
-    //! bench's resonance; the workflow sees the shift and names the manifold's volume and
-    //! inertia.
-
-    use super::super::hide::measure;
-    use super::*;
-    use hbmodel::Mode;
-
-    #[test]
-    fn the_missing_manifold_is_named_from_the_resonance_shift() {
-        let mut known = Params::thesis_bench(Mode::ThreeWay);
-        let manifold = [
-            Effect::ManifoldVolume,
-            Effect::ManifoldInertia,
-            Effect::ManifoldLosses,
-        ];
-        for e in manifold {
-            known.effects.set(e, false);
-        }
-        // the bench: the thesis's passages (Tables 3.3, 3.4), losses aside
-        let mut bench = known.clone();
-        bench.effects.set(Effect::ManifoldVolume, true);
-        bench.effects.set(Effect::ManifoldInertia, true);
-        let (experiment, measured) = measure(&bench, Kind::Sweep, 4).unwrap();
-        let o = super::super::run(&known, &experiment, &measured, false).unwrap();
-        // the passages come in first, as a whole: with the losses (which bring the
-        // volume and inertia along) fitted near none, or volume and inertia one by one
-        let steps: Vec<_> = o
-            .steps
-            .iter()
-            .map(|s| (s.name.as_str(), &s.brings, &s.parameters))
-            .collect();
-        let first = o.steps.first().expect("an effect is named");
-        assert!(first.name.starts_with("manifold_"), "{steps:?}");
-        assert!(
-            manifold[..2].iter().all(|e| o.model.has(*e)),
-            "the passages' volume and inertia are in the fitted model: {steps:?}"
-        );
-        if o.model.has(Effect::ManifoldLosses) {
-            let losses = o.model.manifold.loss_scale;
-            assert!(losses < 0.25, "the bench has no losses: {losses} {steps:?}");
-        }
-        let r = o.records[0]
-            .first
-            .resonance
-            .clone()
-            .expect("the sweep shows a resonance");
-        assert!((150.0..250.0).contains(&r.measured_hz), "{r:?}");
-        assert!(r.simulated_hz > r.measured_hz + 25.0, "{r:?}");
-        assert!(
-            o.remaining_gap < 0.1 * o.initial_gap,
-            "{} -> {}",
-            o.initial_gap,
-            o.remaining_gap
-        );
-    }
-}
+mod thesis_story;

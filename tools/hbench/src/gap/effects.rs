@@ -36,6 +36,9 @@ pub struct Candidate {
     pub effect: Option<Effect>,
     pub fitted: Vec<Fitted>,
     pub signature: &'static str,
+    /// Effects the fit switches on besides an added effect and what it requires (SV2
+    /// recalibrated apart from SV1 becomes its own valve: `valve_asymmetry`).
+    pub switches_on: &'static [Effect],
 }
 
 impl Candidate {
@@ -155,6 +158,7 @@ pub fn candidate(e: Effect) -> Option<Candidate> {
         effect: Some(e),
         fitted,
         signature,
+        switches_on: &[],
     })
 }
 

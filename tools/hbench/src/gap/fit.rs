@@ -11,6 +11,7 @@ use hbmodel::params::param;
 use hbmodel::Params;
 use levenberg_marquardt::{LeastSquaresProblem, LevenbergMarquardt};
 use nalgebra::{DMatrix, DVector, Dyn, Owned};
+use std::ops::Range;
 
 use super::data::{Experiment, Measured};
 use super::drive::simulate;
@@ -22,12 +23,44 @@ pub struct Record<'a> {
     pub experiment: &'a Experiment,
     /// (signal, noise standard deviation) of the compared signals present in the data.
     pub noise: Vec<(&'static str, f64)>,
+    /// The samples compared (all of them but in a held-out check, `holdout`): the whole
+    /// record is simulated, its states carry through the samples left out.
+    pub window: Range<usize>,
 }
 
-impl Record<'_> {
+impl<'a> Record<'a> {
+    /// The whole record.
+    pub fn new(
+        measured: &'a Measured,
+        experiment: &'a Experiment,
+        noise: Vec<(&'static str, f64)>,
+    ) -> Self {
+        let window = 0..measured.time.len();
+        Record {
+            measured,
+            experiment,
+            noise,
+            window,
+        }
+    }
+
+    /// The same record compared on `window` only.
+    pub fn part(&self, window: Range<usize>) -> Self {
+        Record {
+            window,
+            noise: self.noise.clone(),
+            ..*self
+        }
+    }
+
+    /// Samples per signal compared.
+    pub fn samples(&self) -> usize {
+        self.window.len()
+    }
+
     /// Residual samples this record contributes.
     pub fn len(&self) -> usize {
-        self.measured.time.len() * self.noise.len()
+        self.samples() * self.noise.len()
     }
 
     /// Append the record's noise-normalised residuals of `p`; None if the simulation fails.
@@ -35,6 +68,7 @@ impl Record<'_> {
         let sim = simulate(p, self.experiment, self.measured).ok()?;
         for (name, sigma) in &self.noise {
             let (m, s) = (self.measured.get(name)?, sim.get(name)?);
+            let (m, s) = (m.get(self.window.clone())?, s.get(self.window.clone())?);
             r.extend(m.iter().zip(s).map(|(m, s)| (s - m) / sigma));
         }
         Some(())
@@ -74,7 +108,7 @@ impl Target<'_> {
     pub fn blocks(&self) -> Vec<usize> {
         self.records
             .iter()
-            .flat_map(|r| r.noise.iter().map(|_| r.measured.time.len()))
+            .flat_map(|r| r.noise.iter().map(|_| r.samples()))
             .collect()
     }
 
@@ -198,13 +232,11 @@ impl LeastSquaresProblem<f64, Dyn, Dyn> for Problem<'_> {
 /// A candidate fitted to the data.
 #[derive(Debug, Clone)]
 pub struct Fit {
-    pub kind: StepKind,
-    /// The effect added, or whose parameters were re-fitted (None: the base model's).
-    pub effect: Option<Effect>,
+    /// What was fitted: the effect added or the parameters re-fitted (its own, not the
+    /// carried ones).
+    pub candidate: Candidate,
     /// The effect's name, or the base parameter re-fitted.
     pub name: String,
-    /// What was fitted (the candidate's own parameters, not the carried ones).
-    pub fitted: Vec<Fitted>,
     pub params: Params,
     /// (registry path, fitted value)
     pub values: Vec<(&'static str, f64)>,
@@ -220,25 +252,29 @@ const SCREEN_POINTS: usize = 5;
 /// Optimiser budget (the crate's patience: evaluations per parameter).
 const PATIENCE: usize = 8;
 
+/// Switch `e` on in `p`, starting from what the model was without it: SV2, which followed
+/// SV1 while `valve_asymmetry` was off, becomes its own valve as a copy of SV1 (not of the
+/// SV2 parameters it ignored, which a recalibration of SV1 left behind).
+fn switch_on(p: &mut Params, e: Effect) {
+    if e == Effect::ValveAsymmetry && !p.has(e) {
+        p.sv2 = p.sv1;
+    }
+    p.effects.set(e, true);
+}
+
 /// Switch `c` on in `base` (with what it requires) and fit its parameters, together with
 /// `carried`: the parameters of the effects added before, refitted jointly so that an
 /// earlier effect that took up part of this one's signature gives it back.
 pub fn fit(target: &Target, base: &Params, c: &Candidate, carried: &[Fitted]) -> Fit {
     let mut start = base.clone();
     if let (StepKind::Add, Some(e)) = (c.kind, c.effect) {
-        start.effects.set(e, true);
+        switch_on(&mut start, e);
         for &needed in e.spec().requires {
-            start.effects.set(needed, true);
+            switch_on(&mut start, needed);
         }
     }
-    // SV2 recalibrated apart from SV1 becomes its own valve, a copy of SV1 (what it was
-    // while it followed SV1) but for what is fitted
-    let own_sv2 = c.kind == StepKind::Recalibrate
-        && c.fitted.iter().any(|f| f.path.starts_with("sv2."))
-        && !start.has(Effect::ValveAsymmetry);
-    if own_sv2 {
-        start.sv2 = start.sv1;
-        start.effects.set(Effect::ValveAsymmetry, true);
+    for &e in c.switches_on {
+        switch_on(&mut start, e);
     }
     let coords: Vec<Coordinate> = c
         .fitted
@@ -300,10 +336,8 @@ pub fn fit(target: &Target, base: &Params, c: &Candidate, carried: &[Fitted]) ->
         .map(|(c, z)| (c.fitted.path, c.value(*z)))
         .collect();
     Fit {
-        kind: c.kind,
-        effect: c.effect,
+        candidate: c.clone(),
         name: c.name(),
-        fitted: c.fitted.clone(),
         gap: (chi2 / problem.r.len().max(1) as f64).sqrt(),
         chi2,
         params,

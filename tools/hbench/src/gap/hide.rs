@@ -60,7 +60,6 @@ pub struct Truth {
 
 impl Truth {
     /// The Rust model with these parameters, nothing else.
-    #[cfg(test)]
     pub fn rust(params: Params) -> Self {
         Truth {
             params,
@@ -110,7 +109,7 @@ fn lag_weight(tau: f64) -> f64 {
 
 /// Noise-free samples of the bench under the experiment: per sample [reference or
 /// command, y, P1, P2, u1] as the sensors deliver them (after their lags) and as applied.
-fn raw(truth: &Truth, design: &Design) -> Result<(Experiment, Vec<[f64; 5]>), String> {
+pub fn raw(truth: &Truth, design: &Design) -> Result<(Experiment, Vec<[f64; 5]>), String> {
     let (experiment, signal) = design.samples()?;
     let n = signal.len();
     if let Some(variant) = &truth.peer {

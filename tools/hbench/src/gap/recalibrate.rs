@@ -80,13 +80,35 @@ fn recalibration(fitted: Vec<Fitted>, signature: &'static str) -> Candidate {
         effect: None,
         fitted,
         signature,
+        switches_on: &[],
     }
 }
 
 /// The recalibrations open in `model`: each base parameter within +-`fraction` of its
-/// value, and the parameters of each effect already on within the registry's physical
-/// bounds; those in `done` (re-fitted in an earlier step, and carried since) are left out.
+/// value (none when `fraction` is 0), and the parameters of each effect already on within
+/// the registry's physical bounds; those in `done` (re-fitted in an earlier step, and
+/// carried since) are left out.
 pub fn candidates(model: &Params, fraction: f64, done: &[&str]) -> Vec<Candidate> {
+    let mut out = if fraction > 0.0 {
+        base(model, fraction, done)
+    } else {
+        Vec::new()
+    };
+    for e in model.effects.active() {
+        let Some(c) = candidate(e) else { continue };
+        if c.fitted.iter().any(|f| done.contains(&f.path)) {
+            continue;
+        }
+        out.push(Candidate {
+            kind: StepKind::Recalibrate,
+            ..c
+        });
+    }
+    out
+}
+
+/// The base model's recalibrations: relative, absolute, and SV2 against SV1.
+fn base(model: &Params, fraction: f64, done: &[&str]) -> Vec<Candidate> {
     let mut out = Vec::new();
     for (path, signature) in BASE {
         if done.contains(&path) {
@@ -105,7 +127,7 @@ pub fn candidates(model: &Params, fraction: f64, done: &[&str]) -> Vec<Candidate
     }
     for (path, half, signature) in ABSOLUTE {
         let Some(spec) = param(path) else { continue };
-        if done.contains(&path) || fraction <= 0.0 {
+        if done.contains(&path) {
             continue;
         }
         let v = spec.get(model);
@@ -113,26 +135,19 @@ pub fn candidates(model: &Params, fraction: f64, done: &[&str]) -> Vec<Candidate
         out.push(recalibration(vec![within(path, bounds)], signature));
     }
     let sv2_open = !SV2_FLOW_AND_BIAS.iter().any(|p| done.contains(p));
-    if fraction > 0.0 && sv2_open && !model.has(Effect::ValveAsymmetry) {
+    if sv2_open && !model.has(Effect::ValveAsymmetry) {
         let (flow, half_flow) = SV2_FLOW;
         let (bias, half_bias) = SV2_BIAS;
         let (q, b) = (model.sv1.rated_flow, model.sv1.null_bias);
-        out.push(recalibration(
-            vec![
-                within(flow, [q * (1.0 - half_flow), q * (1.0 + half_flow)]),
-                within(bias, [b - half_bias, b + half_bias]),
-            ],
-            "SV2 a few percent off SV1 (flow gain, null): the chambers fill at unequal rates, P2's rest level differs from P1's",
-        ));
-    }
-    for e in model.effects.active() {
-        let Some(c) = candidate(e) else { continue };
-        if c.fitted.iter().any(|f| done.contains(&f.path)) {
-            continue;
-        }
         out.push(Candidate {
-            kind: StepKind::Recalibrate,
-            ..c
+            switches_on: &[Effect::ValveAsymmetry],
+            ..recalibration(
+                vec![
+                    within(flow, [q * (1.0 - half_flow), q * (1.0 + half_flow)]),
+                    within(bias, [b - half_bias, b + half_bias]),
+                ],
+                "SV2 a few percent off SV1 (flow gain, null): the chambers fill at unequal rates, P2's rest level differs from P1's",
+            )
         });
     }
     out

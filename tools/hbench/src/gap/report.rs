@@ -250,6 +250,7 @@ pub fn write(out: &Path, o: &Outcome) -> Result<(), String> {
         "verdict": o.verdict,
         "figures": figures,
         "advice": o.advice,
+        "refused_on_held_out_data": o.refusals,
     });
     // a single record keeps the fields of one-record reports at the top level
     if let [r] = o.records.as_slice() {
@@ -330,7 +331,8 @@ pub fn write(out: &Path, o: &Outcome) -> Result<(), String> {
         }
         let _ = writeln!(
             md,
-            "Fitted: {}. Gap {:.2} -> {:.2}.\n\n| candidate | gap after fit | score (chi2 drop / tau - k ln(N / tau)) | parameters |\n|---|---|---|---|",
+            "{}Fitted: {}. Gap {:.2} -> {:.2}.\n\n| candidate | gap after fit | score (N_eff ln(chi2 / chi2') - k ln N_eff) | parameters |\n|---|---|---|---|",
+            step.validation.as_ref().map_or(String::new(), held_out),
             step.parameters.iter().map(|(k, v)| format!("{k} = {v}")).collect::<Vec<_>>().join(", "),
             step.gap_before,
             step.gap_after
@@ -358,6 +360,12 @@ pub fn write(out: &Path, o: &Outcome) -> Result<(), String> {
             let _ = writeln!(md, "- {s}");
         }
     }
+    if !o.refusals.is_empty() {
+        md.push_str("\n## Refused: better on what they were fitted on, worse on the rest\n\n");
+        for v in &o.refusals {
+            let _ = writeln!(md, "- `{}`: {}", v.effect, held_out(v));
+        }
+    }
     if let Some(a) = &o.advice {
         md.push_str(&super::advice::markdown(a));
     }
@@ -367,6 +375,21 @@ pub fn write(out: &Path, o: &Outcome) -> Result<(), String> {
     }
     md.push_str("The fitted parameter file is `fitted_model.toml`.\n");
     std::fs::write(out.join("report.md"), md).map_err(|err| err.to_string())
+}
+
+/// A held-out check in words.
+fn held_out(v: &super::holdout::Validation) -> String {
+    let folds: Vec<String> = v
+        .folds
+        .iter()
+        .map(|f| {
+            format!(
+                "fitted without the {}, its gap went {:.2} -> {:.2}",
+                f.held_out, f.gap_before, f.gap_after
+            )
+        })
+        .collect();
+    format!("Held out: {}. ", folds.join("; "))
 }
 
 fn list<'a>(names: impl Iterator<Item = &'a str>) -> String {

@@ -139,10 +139,14 @@ fn scored(effect: &str, score: f64) -> Scored {
 fn fitted(name: &str, score: f64) -> (f64, Fit) {
     let params = Params::default();
     let fit = Fit {
-        kind: super::super::effects::StepKind::Add,
-        effect: None,
+        candidate: super::super::effects::Candidate {
+            kind: super::super::effects::StepKind::Add,
+            effect: None,
+            fitted: Vec::new(),
+            signature: "",
+            switches_on: &[],
+        },
         name: name.into(),
-        fitted: Vec::new(),
         params,
         values: Vec::new(),
         chi2: 0.0,
@@ -192,11 +196,7 @@ fn slow_moves_cannot_show_the_oils_compliance_but_show_friction() {
     let known = known_model(&[]);
     let (experiment, measured) = measure(&known, Kind::Moves, 1).expect("the bench runs");
     let target = Target {
-        records: vec![Record {
-            measured: &measured,
-            experiment: &experiment,
-            noise: noise(),
-        }],
+        records: vec![Record::new(&measured, &experiment, noise())],
     };
     let spots = unseen::blind_spots(&known, &target, 1.0);
     let names: Vec<&str> = spots.iter().map(|(n, _, _)| n.as_str()).collect();
