@@ -73,12 +73,13 @@ pub struct Advice {
 }
 
 /// Whether the record left something to tell apart: the run stopped above the noise
-/// floor (something is missing that no candidate explained on this record), or the last
+/// floor (something is missing that no candidate explained on this record, or the run
+/// reached its limit of added effects before explaining it), or the last
 /// step's winner and runner-up both paid their price and stood within ln B 3 of each
 /// other (two explanations of what the record showed). At the noise floor every rejected
 /// candidate scores about -k ln N and any two are within ln B 3; that is no question the
 /// data raise, and asking it cost 27 simulations per run (measured on the blind sample).
-pub fn needed(steps: &[Step], rejected: &[Scored], gap: f64) -> bool {
+pub fn needed(steps: &[Step], gap: f64) -> bool {
     let contested = steps.last().is_some_and(|s| {
         s.preference.as_ref().is_some_and(|p| {
             p.verdict != "clear"
@@ -87,7 +88,7 @@ pub fn needed(steps: &[Step], rejected: &[Scored], gap: f64) -> bool {
                     .any(|c| c.effect == p.runner_up && c.score > 0.0)
         })
     });
-    contested || (!rejected.is_empty() && gap > NOISE_FLOOR_GAP)
+    contested || gap > NOISE_FLOOR_GAP
 }
 
 /// The model as it stands and the best-scoring candidates of the last round (`round`:
@@ -122,7 +123,7 @@ pub fn after(
     noise: &[(&'static str, f64)],
     progress: bool,
 ) -> Option<Advice> {
-    if !needed(steps, rejected, gap) {
+    if !needed(steps, gap) {
         return None;
     }
     // with nothing rejected the last round's winner is the model as it stands
