@@ -235,8 +235,6 @@ pub struct Settings {
     /// more simulations, some of a 5 s sweep; blind studies that only score the naming
     /// leave it out.
     pub advise: bool,
-    /// An effect is added only if it improves data it was not fitted on (`holdout`).
-    pub held_out: bool,
 }
 
 impl Default for Settings {
@@ -245,7 +243,6 @@ impl Default for Settings {
             progress: false,
             within: recalibrate::DEFAULT_FRACTION,
             advise: true,
-            held_out: true,
         }
     }
 }
@@ -298,7 +295,7 @@ pub fn run_with(start: &Params, records: &[Record], settings: Settings) -> Resul
     // the last round's tau and (score, fit) of each candidate, for the advice
     let mut last_round: (f64, Vec<(f64, Fit)>) = (1.0, Vec::new());
     let names: Vec<String> = records.iter().map(|r| r.name.clone()).collect();
-    let (mut refused, mut refusals) = (Vec::<String>::new(), Vec::new());
+    let mut refusals: Vec<holdout::Validation> = Vec::new();
     let verdict = loop {
         let added = steps
             .iter()
@@ -339,7 +336,9 @@ pub fn run_with(start: &Params, records: &[Record], settings: Settings) -> Resul
         let mut eligible: Vec<&(Scored, &Fit)> = scored
             .iter()
             .filter(|(s, f)| {
-                s.score > 0.0 && f.gap < (1.0 - MIN_IMPROVEMENT) * gap && !refused.contains(&f.name)
+                s.score > 0.0
+                    && f.gap < (1.0 - MIN_IMPROVEMENT) * gap
+                    && !refusals.iter().any(|v| v.effect == f.name)
             })
             .collect();
         let (mut validated, mut refused_now) = (None, 0);
@@ -347,7 +346,8 @@ pub fn run_with(start: &Params, records: &[Record], settings: Settings) -> Resul
             let Some(b) = choose(&eligible) else {
                 break None;
             };
-            if b.1.candidate.kind != effects::StepKind::Add || !settings.held_out {
+            // an added effect must improve data it was not fitted on (`holdout`)
+            if b.1.candidate.kind != effects::StepKind::Add {
                 break Some(b);
             }
             let v = holdout::validate(&target, &names, &model, &b.1.candidate, &carried, progress);
@@ -355,7 +355,6 @@ pub fn run_with(start: &Params, records: &[Record], settings: Settings) -> Resul
                 validated = Some(v);
                 break Some(b);
             }
-            refused.push(b.1.name.clone());
             refusals.push(v);
             refused_now += 1;
             eligible.retain(|e| e.1.name != b.1.name);
@@ -373,10 +372,11 @@ pub fn run_with(start: &Params, records: &[Record], settings: Settings) -> Resul
                 format!(
                     "no candidate effect lowers the gap ({gap:.2}) by more than {:.0} % and its complexity price{}",
                     MIN_IMPROVEMENT * 100.0,
-                    if refused.is_empty() {
+                    if refusals.is_empty() {
                         String::new()
                     } else {
-                        format!(" and improves the data it was not fitted on (refused: {})", refused.join(", "))
+                        let effects: Vec<&str> = refusals.iter().map(|v| v.effect.as_str()).collect();
+                        format!(" and improves the data it was not fitted on (refused: {})", effects.join(", "))
                     }
                 )
             };
