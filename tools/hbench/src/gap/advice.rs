@@ -22,7 +22,7 @@ use super::evidence::CLEAR_LN_BAYES;
 use super::experiments::Design;
 use super::fit::Fit;
 use super::hide::{raw, Truth};
-use super::{Scored, Step, NOISE_FLOOR_GAP};
+use super::{Step, NOISE_FLOOR_GAP};
 
 /// Candidates of the last round compared with the model as it stands: the two best, as
 /// the Bayes factor of `evidence` compares the best with the runner-up.
@@ -72,23 +72,41 @@ pub struct Advice {
     pub recommendation: String,
 }
 
+/// One round of the workflow as the advice needs it: the correlation time of the residual
+/// the round started from, and each candidate's score and fit.
+#[derive(Debug, Clone)]
+pub struct Round {
+    pub tau: f64,
+    pub fits: Vec<(f64, Fit)>,
+}
+
+/// The candidate a step could not tell from the one it took, if any: the step's
+/// preference is no clear one and the rival paid its price too. The rival is the best
+/// scorer, or the runner-up when the step took the best (a recalibration is taken over a
+/// close effect, `selection::choose`).
+pub fn contested(step: &Step) -> Option<&str> {
+    let p = step.preference.as_ref()?;
+    let rival = if p.best == step.name {
+        &p.runner_up
+    } else {
+        &p.best
+    };
+    let paid = step
+        .candidates
+        .iter()
+        .any(|c| &c.effect == rival && c.score > 0.0);
+    (p.verdict != "clear" && paid).then_some(rival.as_str())
+}
+
 /// Whether the record left something to tell apart: the run stopped above the noise
 /// floor (something is missing that no candidate explained on this record, or the run
-/// reached its limit of added effects before explaining it), or the last
-/// step's winner and runner-up both paid their price and stood within ln B 3 of each
-/// other (two explanations of what the record showed). At the noise floor every rejected
-/// candidate scores about -k ln N and any two are within ln B 3; that is no question the
-/// data raise, and asking it cost 27 simulations per run (measured on the blind sample).
+/// reached its limit of added effects before explaining it), or a step's choice and its
+/// rival both paid their price and stood within ln B 3 of each other (two explanations
+/// of what the record showed). At the noise floor every rejected candidate scores about
+/// -k ln N and any two are within ln B 3; that is no question the data raise, and asking
+/// it cost 27 simulations per run (measured on the blind sample).
 pub fn needed(steps: &[Step], gap: f64) -> bool {
-    let contested = steps.last().is_some_and(|s| {
-        s.preference.as_ref().is_some_and(|p| {
-            p.verdict != "clear"
-                && s.candidates
-                    .iter()
-                    .any(|c| c.effect == p.runner_up && c.score > 0.0)
-        })
-    });
-    contested || gap > NOISE_FLOOR_GAP
+    steps.iter().any(|s| contested(s).is_some()) || gap > NOISE_FLOOR_GAP
 }
 
 /// The model as it stands and the best-scoring candidates of the last round (`round`:
@@ -113,32 +131,75 @@ pub fn leading(
         .collect()
 }
 
-/// The advice after a run, when `needed`: the last round's fits and tau.
+/// The advice after a run, when `needed`. The earliest contested step is asked first:
+/// what it chose shaped every later step, and the last round no longer holds the rival
+/// (a payload taken for the manifold's oil mass at the first step, Rust bench with form
+/// error, steps: the last round's question was which of the later small effects to add,
+/// and its advised moves named nothing, measured). Its two fits, from the model before
+/// that step, are the leading models. Without a contested step, the model as it stands
+/// and the last round's best.
 pub fn after(
     model: &Params,
     steps: &[Step],
-    rejected: &[Scored],
     gap: f64,
-    (tau, round): &(f64, Vec<(f64, Fit)>),
+    rounds: &[Round],
     noise: &[(&'static str, f64)],
     progress: bool,
 ) -> Option<Advice> {
     if !needed(steps, gap) {
         return None;
     }
-    // with nothing rejected the last round's winner is the model as it stands
+    let designs = super::experiments::designs();
+    if let Some(u) = earliest_contested(steps, rounds) {
+        let mut a = advise(&u.pair, noise, u.tau, &designs, progress);
+        a.question = format!(
+            "step {} could not tell `{}` from `{}`",
+            u.step + 1,
+            u.pair[0].0,
+            u.pair[1].0
+        );
+        return Some(a);
+    }
+    let last = rounds.last()?;
+    // a run cut by the limit took a step in its last round: that winner is the model as
+    // it stands (a run that ended on its own rejected every candidate of a last round)
     let accepted = steps
         .last()
-        .filter(|_| rejected.is_empty())
+        .filter(|_| rounds.len() == steps.len())
         .map(|s| s.name.as_str());
-    let leading = leading(model, round, accepted);
-    Some(advise(
-        &leading,
-        noise,
-        *tau,
-        &super::experiments::designs(),
-        progress,
-    ))
+    let leading = leading(model, &last.fits, accepted);
+    Some(advise(&leading, noise, last.tau, &designs, progress))
+}
+
+/// A step the record could not decide.
+#[derive(Debug)]
+pub struct Undecided {
+    /// Index of the step.
+    pub step: usize,
+    /// Correlation time of the residual its round started from.
+    pub tau: f64,
+    /// Its choice and its rival, as fitted in that round.
+    pub pair: [(String, Params); 2],
+}
+
+/// The earliest contested step.
+pub fn earliest_contested(steps: &[Step], rounds: &[Round]) -> Option<Undecided> {
+    steps.iter().enumerate().find_map(|(i, s)| {
+        let rival = contested(s)?;
+        let round = rounds.get(i)?;
+        let pick = |name: &str| {
+            round
+                .fits
+                .iter()
+                .find(|(_, f)| f.name == name)
+                .map(|(_, f)| (f.name.clone(), f.params.clone()))
+        };
+        Some(Undecided {
+            step: i,
+            tau: round.tau,
+            pair: [pick(&s.name)?, pick(rival)?],
+        })
+    })
 }
 
 /// Noise-free y, P1, P2 of `params` under `design`, as the sensors would read them

@@ -87,23 +87,20 @@ pub fn folds<'a>(
     ]
 }
 
-/// Fit `c` on each fold's fitted part (with the carried parameters, as the step itself)
-/// and compare the held-out part's gap with the model's before the step, its carried
-/// parameters re-fitted on the same part: both sides then know the same data (against
-/// the model as fitted on everything, whose recalibrations had seen the held-out part, a
-/// manifold inertia hidden on steps with form error was refused, measured). The folds
-/// run in parallel.
-pub fn validate(
+/// The held-out gap of each fold under the model before the step, its carried
+/// parameters re-fitted on the fold's fitted part: both sides of the comparison then know
+/// the same data (against the model as fitted on everything, whose recalibrations had
+/// seen the held-out part, a manifold inertia hidden on steps with form error was
+/// refused, measured). The folds run in parallel.
+pub fn baseline(
     target: &Target,
     names: &[String],
     model: &Params,
-    c: &Candidate,
     carried: &[Fitted],
     progress: bool,
-) -> Validation {
+) -> Vec<f64> {
     let parts = folds(target, names);
-    let bar = crate::parallel::bar(parts.len(), &format!("held out, {}", c.name()), progress);
-    // the model before the step, its carried parameters re-fitted
+    let bar = crate::parallel::bar(parts.len(), "held out, the model before", progress);
     let refit = Candidate {
         kind: StepKind::Recalibrate,
         effect: None,
@@ -111,27 +108,52 @@ pub fn validate(
         signature: "the model before the step",
         switches_on: &[],
     };
-    let folds = crate::parallel::map(
+    crate::parallel::map(
         &parts,
         &bar,
         |(held_out, _, _)| held_out.clone(),
-        |(held_out, fitted, left_out)| {
-            let before = if carried.is_empty() {
-                model.clone()
+        |(_, fitted, left_out)| {
+            if carried.is_empty() {
+                left_out.gap(model)
             } else {
-                fit(fitted, model, &refit, &[]).params
-            };
-            let after = fit(fitted, model, c, carried);
-            Fold {
-                held_out: held_out.clone(),
-                gap_before: left_out.gap(&before),
-                gap_after: left_out.gap(&after.params),
+                left_out.gap(&fit(fitted, model, &refit, &[]).params)
             }
         },
+    )
+}
+
+/// Fit `c` on each fold's fitted part (with the carried parameters, as the step itself)
+/// and compare the held-out part's gap with `before` (`baseline`, fold by fold). The
+/// folds run in parallel.
+pub fn validate(
+    target: &Target,
+    names: &[String],
+    model: &Params,
+    c: &Candidate,
+    carried: &[Fitted],
+    before: &[f64],
+    progress: bool,
+) -> Validation {
+    let parts = folds(target, names);
+    let bar = crate::parallel::bar(parts.len(), &format!("held out, {}", c.name()), progress);
+    let after = crate::parallel::map(
+        &parts,
+        &bar,
+        |(held_out, _, _)| held_out.clone(),
+        |(_, fitted, left_out)| left_out.gap(&fit(fitted, model, c, carried).params),
     );
     Validation {
         effect: c.name(),
-        folds,
+        folds: parts
+            .iter()
+            .zip(after)
+            .zip(before)
+            .map(|(((held_out, _, _), gap_after), &gap_before)| Fold {
+                held_out: held_out.clone(),
+                gap_before,
+                gap_after,
+            })
+            .collect(),
     }
 }
 
@@ -218,7 +240,8 @@ mod tests {
             joint.gap
         );
         let names = ["delayed".to_string(), "plain".to_string()];
-        let v = validate(&target, &names, known, &delay, &[], false);
+        let before = baseline(&target, &names, known, &[], false);
+        let v = validate(&target, &names, known, &delay, &[], &before, false);
         assert!(!v.passed(), "{v:?}");
         let plain = &v.folds[1];
         assert!(

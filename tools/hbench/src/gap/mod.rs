@@ -26,6 +26,7 @@ pub mod peer;
 pub mod recalibrate;
 mod report;
 pub mod resonance;
+mod selection;
 pub mod variants;
 
 #[cfg(test)]
@@ -39,7 +40,7 @@ use serde::Serialize;
 use analysis::{localise, noise, quantum, Localisation};
 use data::{load_experiment, load_measured, Experiment, Measured, COMPARED};
 use drive::{simulate, Traces};
-use fit::{fit, Fit, Target};
+use fit::{Fit, Target};
 
 /// A gap at or below this is reported as the noise floor: the noise estimate itself is
 /// uncertain by a few percent. The candidates are still tried there: an effect that is
@@ -55,9 +56,6 @@ pub const MIN_IMPROVEMENT: f64 = 0.01;
 /// Rust bench with form error before a hidden dry friction or payload was tried again
 /// (steps, seed 1: "stopped after 4 effects" with the gap at 1.25 and 2.18, measured).
 pub const MAX_STEPS: usize = 4;
-/// Candidates refused on held-out data before a round gives up adding (each costs a fit
-/// per fold).
-const MAX_REFUSALS_PER_ROUND: usize = 2;
 
 /// One accepted step: an effect added, or a recalibration of the known model.
 #[derive(Debug, Clone, Serialize)]
@@ -152,52 +150,6 @@ fn json_values(values: &[(&'static str, f64)]) -> serde_json::Map<String, serde_
         .collect()
 }
 
-/// Fit every candidate in parallel on all cores, with a progress bar when asked.
-///
-/// An effect that needs others (manifold losses need the passages' volumes and inertia)
-/// is tried with them on at their built-in sizes: a bench whose passages lose much can
-/// look like neither the lossless passages nor no passages at all (with losses 3.4 times
-/// the built-in ones hidden on the sweep, volume alone and inertia alone each fitted
-/// worse than nothing and the valve's lag was named, on data from the integrator before
-/// its Newton tolerance was tightened; docs/gap.md). Such a candidate is several
-/// effects at once, and its simulations carry the passages' fast oil columns (4-7 s of
-/// CPU per sweep against 0.2-0.5 s): it is tried only when no candidate of one effect
-/// brings the gap to the noise floor.
-///
-/// The recalibrations open (`recalibrations`) are fitted beside the single effects.
-fn fit_all(
-    target: &Target,
-    model: &Params,
-    carried: &[effects::Fitted],
-    recalibrations: Vec<effects::Candidate>,
-    progress: bool,
-) -> Vec<Fit> {
-    let (mut single, joint): (Vec<_>, Vec<_>) = effects::all()
-        .into_iter()
-        .filter(|c| c.effect.is_some_and(|e| !model.has(e)))
-        .partition(|c| {
-            c.effect
-                .is_some_and(|e| e.spec().requires.iter().all(|r| model.has(*r)))
-        });
-    single.extend(recalibrations);
-    let fit_in_parallel = |candidates: &[effects::Candidate]| {
-        let bar = crate::parallel::bar(candidates.len(), "fitting", progress);
-        // in registry order, as the candidates
-        crate::parallel::map(
-            candidates,
-            &bar,
-            |c| c.name(),
-            |c| fit(target, model, c, carried),
-        )
-    };
-    let mut fits = fit_in_parallel(&single);
-    let floor_reached = fits.iter().any(|f| f.gap <= NOISE_FLOOR_GAP);
-    if !floor_reached && !joint.is_empty() {
-        fits.extend(fit_in_parallel(&joint));
-    }
-    fits
-}
-
 /// Run the workflow on one loaded record, with recalibrations within the default bounds.
 #[cfg(test)]
 pub fn run(
@@ -247,23 +199,6 @@ impl Default for Settings {
     }
 }
 
-/// The round's step among the eligible candidates: the best-scoring, but a recalibration
-/// the data cannot tell from the best effect (within ln B 3) is taken instead: parameters
-/// a few percent off are no missing physics (issue 14 item 4).
-fn choose<'a, 'b>(eligible: &[&'a (Scored, &'b Fit)]) -> Option<&'a (Scored, &'b Fit)> {
-    let top = |kind: Option<effects::StepKind>| {
-        eligible
-            .iter()
-            .filter(|(_, f)| kind.is_none_or(|k| f.candidate.kind == k))
-            .max_by(|a, b| a.0.score.total_cmp(&b.0.score))
-            .copied()
-    };
-    match (top(None), top(Some(effects::StepKind::Recalibrate))) {
-        (Some(b), Some(r)) if r.0.score >= b.0.score - 2.0 * evidence::CLEAR_LN_BAYES => Some(r),
-        (b, _) => b,
-    }
-}
-
 /// Run the workflow on one or several records fitted jointly.
 pub fn run_with(start: &Params, records: &[Record], settings: Settings) -> Result<Outcome, String> {
     let Settings {
@@ -292,8 +227,8 @@ pub fn run_with(start: &Params, records: &[Record], settings: Settings) -> Resul
     let mut steps = Vec::new();
     let mut carried: Vec<effects::Fitted> = Vec::new();
     let (mut rejected, mut final_effective) = (Vec::new(), n);
-    // the last round's tau and (score, fit) of each candidate, for the advice
-    let mut last_round: (f64, Vec<(f64, Fit)>) = (1.0, Vec::new());
+    // every round's tau and (score, fit) of each candidate, for the advice
+    let mut rounds: Vec<advice::Round> = Vec::new();
     let names: Vec<String> = records.iter().map(|r| r.name.clone()).collect();
     let mut refusals: Vec<holdout::Validation> = Vec::new();
     let verdict = loop {
@@ -306,7 +241,7 @@ pub fn run_with(start: &Params, records: &[Record], settings: Settings) -> Resul
         }
         let done: Vec<&str> = carried.iter().map(|f| f.path).collect();
         let open = recalibrate::candidates(&model, within, &done);
-        let fits = fit_all(&target, &model, &carried, open, progress);
+        let fits = selection::fit_all(&target, &model, &carried, open, progress);
         let chi2 = gap * gap * n;
         // what the residual left by the model so far is worth: a missing effect leaves
         // a coloured residual, whose samples are not independent
@@ -326,14 +261,14 @@ pub fn run_with(start: &Params, records: &[Record], settings: Settings) -> Resul
                 (s, f)
             })
             .collect();
-        last_round = (
+        rounds.push(advice::Round {
             tau,
-            scored
+            fits: scored
                 .iter()
                 .map(|(s, f)| (s.score, (*f).clone()))
                 .collect(),
-        );
-        let mut eligible: Vec<&(Scored, &Fit)> = scored
+        });
+        let eligible: Vec<&(Scored, &Fit)> = scored
             .iter()
             .filter(|(s, f)| {
                 s.score > 0.0
@@ -341,29 +276,16 @@ pub fn run_with(start: &Params, records: &[Record], settings: Settings) -> Resul
                     && !refusals.iter().any(|v| v.effect == f.name)
             })
             .collect();
-        let (mut validated, mut refused_now) = (None, 0);
-        let best = loop {
-            let Some(b) = choose(&eligible) else {
-                break None;
-            };
-            // an added effect must improve data it was not fitted on (`holdout`)
-            if b.1.candidate.kind != effects::StepKind::Add {
-                break Some(b);
-            }
-            let v = holdout::validate(&target, &names, &model, &b.1.candidate, &carried, progress);
-            if v.passed() {
-                validated = Some(v);
-                break Some(b);
-            }
-            refusals.push(v);
-            refused_now += 1;
-            eligible.retain(|e| e.1.name != b.1.name);
-            if refused_now == MAX_REFUSALS_PER_ROUND {
-                // what is left to add is tried again next round, after a recalibration
-                eligible.retain(|e| e.1.candidate.kind != effects::StepKind::Add);
-            }
-        };
-        let Some((_, winner)) = best else {
+        let best = selection::select(
+            eligible,
+            &target,
+            &names,
+            &model,
+            &carried,
+            &mut refusals,
+            progress,
+        );
+        let Some(((_, winner), validated)) = best else {
             rejected = scored.iter().map(|(s, _)| s.clone()).collect();
             final_effective = effective;
             break if gap <= NOISE_FLOOR_GAP {
@@ -426,16 +348,15 @@ pub fn run_with(start: &Params, records: &[Record], settings: Settings) -> Resul
         .advise
         .then(|| {
             let noise = &target.records[0].noise;
-            advice::after(&model, &steps, &rejected, gap, &last_round, noise, progress).or_else(
-                || {
-                    // explained within the noise: what could the record not have shown?
-                    (gap <= NOISE_FLOOR_GAP)
-                        .then(|| {
-                            advice::unseen::check(&model, &target, noise, last_round.0, progress)
-                        })
-                        .flatten()
-                },
-            )
+            advice::after(&model, &steps, gap, &rounds, noise, progress).or_else(|| {
+                // explained within the noise: what could the record not have shown?
+                (gap <= NOISE_FLOOR_GAP)
+                    .then(|| {
+                        let tau = rounds.last().map_or(1.0, |r| r.tau);
+                        advice::unseen::check(&model, &target, noise, tau, progress)
+                    })
+                    .flatten()
+            })
         })
         .flatten();
     Ok(Outcome {

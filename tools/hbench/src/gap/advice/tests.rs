@@ -4,6 +4,7 @@ use hbmodel::Params;
 
 use super::super::blind::known_model;
 use super::super::experiments::{designs, Design, Kind};
+use super::super::Scored;
 use super::*;
 
 /// The record's noise: that of the sensors `hide` samples with (SensorParams::default).
@@ -161,7 +162,6 @@ fn fitted(name: &str, score: f64) -> (f64, Fit) {
 /// model already holds and failed fits left out.
 #[test]
 fn the_advice_is_asked_when_the_record_leaves_the_leaders_undecided() {
-    let apart = [scored("a", -10.0), scored("b", -30.0)];
     // at the noise floor nothing is asked (close rejected scores are no question the
     // data raise); above it, what is missing is
     assert!(!needed(&[], 1.0));
@@ -180,7 +180,11 @@ fn the_advice_is_asked_when_the_record_leaves_the_leaders_undecided() {
         ["as is", "z", "x"]
     );
     assert_eq!(names(leading(&model, &round, None)), ["as is", "y", "z"]);
-    let none = after(&model, &[], &apart, 1.05, &(1.0, round), &noise(), false);
+    let rounds = [Round {
+        tau: 1.0,
+        fits: round,
+    }];
+    let none = after(&model, &[], 1.05, &rounds, &noise(), false);
     assert!(none.is_none());
 }
 
@@ -209,4 +213,58 @@ fn slow_moves_cannot_show_the_oils_compliance_but_show_friction() {
         "{names:?}"
     );
     assert!(spots.iter().all(|(_, _, b)| *b < CLEAR_LN_BAYES));
+}
+
+/// A step taken against a rival within ln B 3 that paid its price.
+fn step(name: &str, scores: &[(&str, f64)]) -> Step {
+    let candidates: Vec<Scored> = scores.iter().map(|&(n, v)| scored(n, v)).collect();
+    let ranked: Vec<(String, f64)> = scores.iter().map(|&(n, v)| (n.into(), v)).collect();
+    Step {
+        kind: super::super::effects::StepKind::Add,
+        effect: Some(name.into()),
+        name: name.into(),
+        brings: Vec::new(),
+        parameters: Default::default(),
+        gap_before: 2.0,
+        gap_after: 1.5,
+        candidates,
+        effective_samples: 100.0,
+        preference: super::super::evidence::preference(&ranked),
+        validation: None,
+    }
+}
+
+/// The advice asks about the earliest step the record could not decide, with the two fits
+/// of that step's round: a later clear step does not hide it, a step whose rival did not
+/// pay its price is no question, and where a recalibration was taken over a close effect
+/// the effect is the rival.
+#[test]
+fn the_advice_asks_the_earliest_undecided_step() {
+    let round = |names: &[(&str, f64)]| Round {
+        tau: 2.0,
+        fits: names.iter().map(|&(n, v)| fitted(n, v)).collect(),
+    };
+    let first = [("inertia", 40.0), ("payload", 38.0), ("volume", 10.0)];
+    let second = [("delay", 30.0), ("air", 5.0)];
+    let steps = [step("inertia", &first), step("delay", &second)];
+    let rounds = [round(&first), round(&second)];
+    assert!(needed(&steps, 1.0));
+    let u = earliest_contested(&steps, &rounds).expect("step 1 was undecided");
+    let [a, b] = &u.pair;
+    assert_eq!(
+        (u.step, u.tau, a.0.as_str(), b.0.as_str()),
+        (0, 2.0, "inertia", "payload")
+    );
+    // a rival that did not pay its price is no question; the clear second step is none
+    let unpaid = [("inertia", 4.0), ("payload", -1.0)];
+    let steps = [step("inertia", &unpaid), step("delay", &second)];
+    let rounds = [round(&unpaid), round(&second)];
+    assert!(earliest_contested(&steps, &rounds).is_none());
+    assert!(!needed(&steps, 1.0));
+    // a recalibration taken over the best effect: the effect is the rival
+    let recal = [("leakage", 20.0), ("viscous", 17.0)];
+    let steps = [step("viscous", &recal)];
+    let u = earliest_contested(&steps, &[round(&recal)]).expect("undecided");
+    let [a, b] = &u.pair;
+    assert_eq!((a.0.as_str(), b.0.as_str()), ("viscous", "leakage"));
 }
