@@ -46,16 +46,6 @@ law = {{ values = ["proportional", "p_y", "restricted_model"] }}
 payload_mass = {{ values = [0.0, 20.0, 50.0, 100.0] }}
 """
 POINTS = 12
-# The test that interrupts a running study needs it still running when it acts: the 12
-# points above take 5 s serially (0.45 s each), and on two cores shared with other work
-# the test's polling was starved until the study had finished (a clean-clone CI of
-# 2026-11-24: exit 0 instead of 130). Twelve payloads give 36 points, about 16 s: the
-# interrupt then comes after a tenth of the run.
-LONG_STUDY = LAWS_X_PAYLOADS.replace(
-    "payload_mass = {{ values = [0.0, 20.0, 50.0, 100.0] }}",
-    "payload_mass = {{ values = [0.0, 5.0, 10.0, 15.0, 20.0, 30.0, 40.0, 50.0, 60.0, 70.0, 85.0, 100.0] }}",
-)
-LONG_POINTS = 36
 
 
 @pytest.fixture(scope="module")
@@ -85,9 +75,18 @@ def env() -> dict[str, str]:
     return dict(os.environ, PYTHONPATH=str(TOOLS), HBENCH=str(HBENCH))
 
 
+def _interruptible() -> None:
+    # A shell without job control starts background commands with SIGINT ignored, and
+    # Python started so keeps ignoring it: the clean-clone CI of 2026-11-24, launched in the
+    # background, failed the resume test because the sweep ran to its end (exit 0, not 130)
+    # after the test's SIGINT. The sweep is started as a terminal would start it.
+    signal.signal(signal.SIGINT, signal.SIG_DFL)
+
+
 def sweep_process(*args: str) -> subprocess.Popen:
     return subprocess.Popen([sys.executable, "-m", "sweep", *args], env=env(), cwd=ROOT,
-                            stdout=subprocess.PIPE, stderr=subprocess.PIPE, text=True)
+                            stdout=subprocess.PIPE, stderr=subprocess.PIPE, text=True,
+                            preexec_fn=_interruptible)
 
 
 def wait_for_records(out: Path, n: int, proc: subprocess.Popen, limit: float = 90.0) -> int:
@@ -168,20 +167,20 @@ def test_a_failed_or_timed_out_point_is_recorded_and_the_study_goes_on(tmp_path,
 # --- resume -------------------------------------------------------------------------------
 
 def test_an_interrupted_study_resumes_without_recomputing_finished_points(tmp_path, fmu):
-    path = write_study(tmp_path, LONG_STUDY, fmu)
+    path = write_study(tmp_path, LAWS_X_PAYLOADS, fmu)
     out = tmp_path / "out"
     proc = sweep_process("--study", str(path), "--out", str(out), "--serial", "--no-plots")
     wait_for_records(out, 3, proc)
     proc.send_signal(signal.SIGINT)
     assert proc.wait(timeout=60) == 130, proc.stderr.read()
     first = records(out)
-    assert 3 <= len(first) < LONG_POINTS and len({r["id"] for r in first}) == len(first)
+    assert 3 <= len(first) < POINTS and len({r["id"] for r in first}) == len(first)
 
     assert cli.main(["--study", str(path), "--out", str(out), "--serial", "--quiet", "--no-plots"]) == 0
     after = records(out)
     assert after[: len(first)] == first  # finished records untouched
     resumed = after[len(first):]
-    assert len(resumed) == LONG_POINTS - len(first)  # only the rest was computed
+    assert len(resumed) == POINTS - len(first)  # only the rest was computed
     assert {r["id"] for r in first}.isdisjoint(r["id"] for r in resumed)
     assert all(r["status"] == "ok" for r in after)
 
@@ -189,7 +188,7 @@ def test_an_interrupted_study_resumes_without_recomputing_finished_points(tmp_pa
     assert cli.main(["--study", str(path), "--out", str(out), "--serial", "--quiet", "--no-plots"]) == 0
     assert records(out) == after
     rows = (out / "results.csv").read_text().splitlines()
-    assert len(rows) == LONG_POINTS + 1
+    assert len(rows) == POINTS + 1
 
 
 # --- Dask ---------------------------------------------------------------------------------
