@@ -95,7 +95,8 @@ pub fn contested(step: &Step) -> Option<&str> {
         .candidates
         .iter()
         .any(|c| &c.effect == rival && c.score > 0.0);
-    (p.verdict != "clear" && paid).then_some(rival.as_str())
+    // the verdict's words derive from this number (`evidence::preference`)
+    (p.ln_bayes_factor < CLEAR_LN_BAYES && paid).then_some(rival.as_str())
 }
 
 /// Whether the record left something to tell apart: the run stopped above the noise

@@ -5,8 +5,7 @@ use hbmodel::sensors::SensorParams;
 
 use super::blind::Setup;
 use super::effects::StepKind;
-use super::hide::Truth;
-use super::hide::{measure_truth, Kind};
+use super::hide::{measure_truth, Kind, Truth};
 use super::variants::{section_4_4, FormError, Simulator};
 use super::{run_with, Outcome, Record, Settings};
 
@@ -103,9 +102,10 @@ fn a_pressure_sensor_lag_is_no_sensor_delay() {
         pressure_lag: 0.4e-3,
         ..FormError::none()
     };
+    let bench = Truth::new(Simulator::Rust, &known, &[], &[], &form);
     let s = Setup {
-        bench: Truth::new(Simulator::Rust, &known, &[], &[], &form),
-        without: Truth::new(Simulator::Rust, &known, &[], &[], &form),
+        without: bench.clone(),
+        bench,
         known,
         drawn: vec![],
     };
