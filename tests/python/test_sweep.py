@@ -75,18 +75,19 @@ def env() -> dict[str, str]:
     return dict(os.environ, PYTHONPATH=str(TOOLS), HBENCH=str(HBENCH))
 
 
-def _interruptible() -> None:
-    # A shell without job control starts background commands with SIGINT ignored, and
-    # Python started so keeps ignoring it: the clean-clone CI of 2026-11-24, launched in the
-    # background, failed the resume test because the sweep ran to its end (exit 0, not 130)
-    # after the test's SIGINT. The sweep is started as a terminal would start it.
-    signal.signal(signal.SIGINT, signal.SIG_DFL)
+# A shell without job control starts background commands with SIGINT ignored, and Python
+# started so keeps ignoring it: the clean-clone CI of 2026-11-24, launched in the
+# background, failed the resume test because the sweep ran to its end (exit 0, not 130)
+# after the test's SIGINT. The sweep is started as a terminal would start it, SIGINT
+# raising KeyboardInterrupt; set in the child itself, not in a preexec_fn, which is unsafe
+# in a process that has threads.
+_INTERRUPTIBLE = ("import runpy, signal; signal.signal(signal.SIGINT, signal.default_int_handler); "
+                  "runpy.run_module('sweep', run_name='__main__', alter_sys=True)")
 
 
 def sweep_process(*args: str) -> subprocess.Popen:
-    return subprocess.Popen([sys.executable, "-m", "sweep", *args], env=env(), cwd=ROOT,
-                            stdout=subprocess.PIPE, stderr=subprocess.PIPE, text=True,
-                            preexec_fn=_interruptible)
+    return subprocess.Popen([sys.executable, "-c", _INTERRUPTIBLE, *args], env=env(), cwd=ROOT,
+                            stdout=subprocess.PIPE, stderr=subprocess.PIPE, text=True)
 
 
 def wait_for_records(out: Path, n: int, proc: subprocess.Popen, limit: float = 90.0) -> int:

@@ -141,6 +141,18 @@ enum Command {
         /// their physical bounds.
         #[arg(long, default_value_t = gap::recalibrate::DEFAULT_FRACTION)]
         recalibrate_within: f64,
+        /// Answer an earlier report's question instead of running the workflow: fit only
+        /// these candidates (comma-separated, as the report's "What to measure next"
+        /// names them) from --model (its question_model.toml) on the records of the
+        /// recommended experiment, and say which one they prefer, with its Bayes factor.
+        /// Writes decision.md, decision.json and fitted_model.toml
+        #[arg(long, value_delimiter = ',')]
+        between: Vec<String>,
+        /// With --between: registry parameters re-fitted on the new records before and
+        /// with the candidates (comma-separated; the report's question names those its
+        /// run recalibrated)
+        #[arg(long, value_delimiter = ',', requires = "between")]
+        recalibrate: Vec<String>,
     },
     /// Write measured-like data with hidden effects: the model with each named effect on at
     /// a random plausible magnitude, driven through an experiment and sampled like the bench
@@ -311,12 +323,16 @@ fn main() -> ExitCode {
             model,
             out,
             recalibrate_within,
+            between,
+            recalibrate,
         } => gap::main(
             &data,
             &experiment,
             model.as_deref(),
             &out,
             recalibrate_within,
+            &between,
+            &recalibrate,
         ),
         Command::Hide {
             effects,

@@ -70,12 +70,25 @@ pub struct Advice {
     /// Whether that design separates every pair (expected ln B >= CLEAR_LN_BAYES).
     pub separates: bool,
     pub recommendation: String,
+    /// The candidates a record of the recommended design is to decide between
+    /// (`decision::decide`): the leading models but the model as it stands.
+    pub between: Vec<String>,
+    /// The model they are fitted from (written as `question_model.toml`): the model before
+    /// the undecided step, or the model as it stands.
+    #[serde(skip)]
+    pub from: Params,
+    /// The known model's parameters the run recalibrated (registry paths) that are open
+    /// from `from`: a new record is read with them re-fitted before the candidates are
+    /// compared (the first record's form error is on the next one too).
+    pub recalibrate: Vec<String>,
 }
 
 /// One round of the workflow as the advice needs it: the correlation time of the residual
 /// the round started from, and each candidate's score and fit.
 #[derive(Debug, Clone)]
 pub struct Round {
+    /// The model the round fitted its candidates from.
+    pub start: Params,
     pub tau: f64,
     pub fits: Vec<(f64, Fit)>,
 }
@@ -152,7 +165,7 @@ pub fn after(
     }
     let designs = super::experiments::designs();
     if let Some(u) = earliest_contested(steps, rounds) {
-        let mut a = advise(&u.pair, noise, u.tau, &designs, progress);
+        let mut a = advise(&u.from, &u.pair, noise, u.tau, &designs, progress);
         a.question = format!(
             "step {} could not tell `{}` from `{}`",
             u.step + 1,
@@ -169,7 +182,7 @@ pub fn after(
         .filter(|_| rounds.len() == steps.len())
         .map(|s| s.name.as_str());
     let leading = leading(model, &last.fits, accepted);
-    Some(advise(&leading, noise, last.tau, &designs, progress))
+    Some(advise(model, &leading, noise, last.tau, &designs, progress))
 }
 
 /// A step the record could not decide.
@@ -179,6 +192,8 @@ pub struct Undecided {
     pub step: usize,
     /// Correlation time of the residual its round started from.
     pub tau: f64,
+    /// The model before the step.
+    pub from: Params,
     /// Its choice and its rival, as fitted in that round.
     pub pair: [(String, Params); 2],
 }
@@ -198,6 +213,7 @@ pub fn earliest_contested(steps: &[Step], rounds: &[Round]) -> Option<Undecided>
         Some(Undecided {
             step: i,
             tau: round.tau,
+            from: round.start.clone(),
             pair: [pick(&s.name)?, pick(rival)?],
         })
     })
@@ -254,19 +270,21 @@ pub fn separation(
 
 /// Simulate the `leading` models under every design (in parallel) and say which design
 /// separates the closest pair of them most, at the record's `noise` and correlation time
-/// `tau`.
+/// `tau`. The candidates among them were fitted from `from`.
 pub fn advise(
+    from: &Params,
     leading: &[(String, Params)],
     noise: &[(&'static str, f64)],
     tau: f64,
     designs: &[Design],
     progress: bool,
 ) -> Advice {
-    assess(leading, noise, tau, designs, progress, false)
+    assess(from, leading, noise, tau, designs, progress, false)
 }
 
 /// `advise`, every pair or (`first_only`) only the first model against each other one.
 fn assess(
+    from: &Params,
     leading: &[(String, Params)],
     noise: &[(&'static str, f64)],
     tau: f64,
@@ -332,7 +350,7 @@ fn assess(
             }
         })
         .collect();
-    recommend(leading, tau, assessed)
+    recommend(from, leading, tau, assessed)
 }
 
 /// The pair of `a` whose separation is least.
@@ -351,7 +369,12 @@ pub const SAFE_LN_BAYES: f64 = 10.0 * CLEAR_LN_BAYES;
 /// The shortest design whose closest pair reaches SAFE_LN_BAYES (the cheapest record
 /// that answers the question: a 5 s sweep costs the analysis 5-10 times the steps'
 /// CPU), the farthest-separating one when none does.
-fn recommend(leading: &[(String, Params)], tau: f64, designs: Vec<Assessed>) -> Advice {
+fn recommend(
+    from: &Params,
+    leading: &[(String, Params)],
+    tau: f64,
+    designs: Vec<Assessed>,
+) -> Advice {
     let least = |a: &Assessed| a.least_ln_bayes_factor.unwrap_or(f64::NEG_INFINITY);
     let safe = designs
         .iter()
@@ -406,6 +429,13 @@ fn recommend(leading: &[(String, Params)], tau: f64, designs: Vec<Assessed>) -> 
         best: best_label,
         separates,
         recommendation,
+        between: leading
+            .iter()
+            .map(|(n, _)| n.clone())
+            .filter(|n| n != AS_IS)
+            .collect(),
+        from: from.clone(),
+        recalibrate: Vec::new(),
     }
 }
 
@@ -458,8 +488,30 @@ pub fn markdown(a: &Advice) -> String {
         md.push('\n');
     }
     md.push_str(&format!("\n**Recommendation:** {}.\n", a.recommendation));
+    if a.best.is_some() && !a.between.is_empty() {
+        md.push_str(&format!(
+            "\nOn the new record, `hbench gap --data NEW.csv --experiment NEW.toml --model {QUESTION_MODEL} --between {}{}` \
+             fits only these candidates from the model the question starts from ({QUESTION_MODEL}, written beside this report), \
+             with the parameters this run recalibrated re-fitted, and says which one the record prefers.\n",
+            a.between.join(","),
+            recalibrate_option(a)
+        ));
+    }
     md
 }
+
+/// The `--recalibrate` option of the command that decides the question (empty when the
+/// run recalibrated nothing).
+pub fn recalibrate_option(a: &Advice) -> String {
+    if a.recalibrate.is_empty() {
+        String::new()
+    } else {
+        format!(" --recalibrate {}", a.recalibrate.join(","))
+    }
+}
+
+/// The file the report writes the question's starting model to.
+pub const QUESTION_MODEL: &str = "question_model.toml";
 
 #[cfg(test)]
 mod tests;

@@ -66,6 +66,22 @@ pub struct Case {
     pub advised: Option<String>,
     #[serde(default)]
     pub named_after_advice: Option<Vec<String>>,
+    /// What the question, decided on the advised record, named (`decision::decide`).
+    #[serde(default)]
+    pub decided: Option<String>,
+    /// The candidates the advice asked to decide between, the separation it expected
+    /// (least ln B over their pairs) and the ln B the decision found between its best and
+    /// runner-up (the model as it stands among them).
+    #[serde(default)]
+    pub advice_between: Vec<String>,
+    #[serde(default)]
+    pub expected_ln_bayes: Option<f64>,
+    #[serde(default)]
+    pub found_ln_bayes: Option<f64>,
+    /// The decision in full (`decision::Decision`): each candidate's fit, the held-out
+    /// checks, the verdict.
+    #[serde(default)]
+    pub decision: Option<serde_json::Value>,
     /// Effects that won a round but were refused on the data they were not fitted on.
     #[serde(default)]
     pub refused: Vec<String>,
@@ -242,7 +258,8 @@ fn named(outcome: &super::Outcome, base: &Params, hidden: &[Effect]) -> Vec<Stri
 
 /// `case_with`, and with `follow` the experiment advice put to the test (issue 14 item
 /// 6): when the hidden effect was not named first, the bench is recorded again under the
-/// design the workflow recommended (new noise) and that record alone is analysed.
+/// design the workflow recommended (new noise); that record alone is analysed afresh, and
+/// the advice's question is decided on it (`decision::decide`).
 pub fn case_advised(
     sim: Simulator,
     form_error: bool,
@@ -329,16 +346,21 @@ pub fn case_advised(
         form: form_error.then(|| s.bench.form.to_json()),
         advised: None,
         named_after_advice: None,
+        decided: None,
+        advice_between: Vec::new(),
+        expected_ln_bayes: None,
+        found_ln_bayes: None,
+        decision: None,
         refused: outcome.refusals.iter().map(|v| v.effect.clone()).collect(),
     };
     let recommended = outcome.advice.as_ref().and_then(|a| {
         let best = a.best.as_ref()?;
-        a.designs
-            .iter()
-            .find(|d| &d.label == best)
-            .map(|d| d.design)
+        let d = a.designs.iter().find(|d| &d.label == best)?;
+        Some((a, d.design, d.least_ln_bayes_factor))
     });
-    if let (true, false, Some(design)) = (follow, case.first_correct(), recommended) {
+    if let (true, false, Some((advice, design, expected))) =
+        (follow, case.first_correct(), recommended)
+    {
         let sp = SensorParams {
             seed: seed + ADVISED_SEED,
             ..SensorParams::default()
@@ -349,6 +371,7 @@ pub fn case_advised(
             experiment,
             measured,
         };
+        // the record analysed afresh, as a user without the question would
         let again = super::run_with(
             base,
             std::slice::from_ref(&record),
@@ -357,8 +380,22 @@ pub fn case_advised(
                 ..settings
             },
         )?;
-        case.advised = Some(design.label());
         case.named_after_advice = Some(named(&again, base, hidden));
+        // and the question asked, answered on it (`decision`)
+        let (decision, _) = super::decision::decide(
+            &advice.from,
+            &advice.between,
+            &advice.recalibrate,
+            std::slice::from_ref(&record),
+            settings.within,
+            false,
+        )?;
+        case.advised = Some(design.label());
+        case.decided = decision.winner.clone();
+        case.advice_between = advice.between.clone();
+        case.expected_ln_bayes = expected;
+        case.found_ln_bayes = decision.preference.as_ref().map(|p| p.ln_bayes_factor);
+        case.decision = serde_json::to_value(&decision).ok();
     }
     Ok(case)
 }

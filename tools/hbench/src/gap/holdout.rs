@@ -12,6 +12,8 @@
 //! record is always simulated: the held-out half's states come from the model running
 //! through the fitted half.
 
+use std::cell::OnceCell;
+
 use hbmodel::Params;
 use serde::Serialize;
 
@@ -87,73 +89,98 @@ pub fn folds<'a>(
     ]
 }
 
-/// The held-out gap of each fold under the model before the step, its carried
-/// parameters re-fitted on the fold's fitted part: both sides of the comparison then know
-/// the same data (against the model as fitted on everything, whose recalibrations had
-/// seen the held-out part, a manifold inertia hidden on steps with form error was
-/// refused, measured). The folds run in parallel.
-pub fn baseline(
-    target: &Target,
-    names: &[String],
-    model: &Params,
-    carried: &[Fitted],
+/// The held-out check of one round: the records (`target`, called `names`), the model
+/// before the step and the parameters carried with every fit. The model before the step
+/// is judged on the folds once, on the first candidate checked (`baseline`).
+pub struct Judge<'a> {
+    target: &'a Target<'a>,
+    names: &'a [String],
+    model: &'a Params,
+    carried: &'a [Fitted],
     progress: bool,
-) -> Vec<f64> {
-    let parts = folds(target, names);
-    let bar = crate::parallel::bar(parts.len(), "held out, the model before", progress);
-    let refit = Candidate {
-        kind: StepKind::Recalibrate,
-        effect: None,
-        fitted: carried.to_vec(),
-        signature: "the model before the step",
-        switches_on: &[],
-    };
-    crate::parallel::map(
-        &parts,
-        &bar,
-        |(held_out, _, _)| held_out.clone(),
-        |(_, fitted, left_out)| {
-            if carried.is_empty() {
-                left_out.gap(model)
-            } else {
-                left_out.gap(&fit(fitted, model, &refit, &[]).params)
-            }
-        },
-    )
+    before: OnceCell<Vec<f64>>,
 }
 
-/// Fit `c` on each fold's fitted part (with the carried parameters, as the step itself)
-/// and compare the held-out part's gap with `before` (`baseline`, fold by fold). The
-/// folds run in parallel.
-pub fn validate(
-    target: &Target,
-    names: &[String],
-    model: &Params,
-    c: &Candidate,
-    carried: &[Fitted],
-    before: &[f64],
-    progress: bool,
-) -> Validation {
-    let parts = folds(target, names);
-    let bar = crate::parallel::bar(parts.len(), &format!("held out, {}", c.name()), progress);
-    let after = crate::parallel::map(
-        &parts,
-        &bar,
-        |(held_out, _, _)| held_out.clone(),
-        |(_, fitted, left_out)| left_out.gap(&fit(fitted, model, c, carried).params),
-    );
-    Validation {
-        effect: c.name(),
-        folds: parts
-            .iter()
-            .zip(after)
-            .zip(before)
-            .map(|(((held_out, _, _), gap_after), &gap_before)| Fold {
-                held_out: held_out.clone(),
-                gap_before,
-                gap_after,
-            })
-            .collect(),
+impl<'a> Judge<'a> {
+    pub fn new(
+        target: &'a Target<'a>,
+        names: &'a [String],
+        model: &'a Params,
+        carried: &'a [Fitted],
+        progress: bool,
+    ) -> Self {
+        Judge {
+            target,
+            names,
+            model,
+            carried,
+            progress,
+            before: OnceCell::new(),
+        }
+    }
+
+    /// The held-out gap of each fold under the model before the step, its carried
+    /// parameters re-fitted on the fold's fitted part: both sides of the comparison then
+    /// know the same data (against the model as fitted on everything, whose
+    /// recalibrations had seen the held-out part, a manifold inertia hidden on steps with
+    /// form error was refused, measured). The folds run in parallel.
+    pub fn baseline(&self) -> &[f64] {
+        self.before.get_or_init(|| {
+            let parts = folds(self.target, self.names);
+            let bar =
+                crate::parallel::bar(parts.len(), "held out, the model before", self.progress);
+            let refit = Candidate {
+                kind: StepKind::Recalibrate,
+                effect: None,
+                fitted: self.carried.to_vec(),
+                signature: "the model before the step",
+                switches_on: &[],
+            };
+            crate::parallel::map(
+                &parts,
+                &bar,
+                |(held_out, _, _)| held_out.clone(),
+                |(_, fitted, left_out)| {
+                    if self.carried.is_empty() {
+                        left_out.gap(self.model)
+                    } else {
+                        left_out.gap(&fit(fitted, self.model, &refit, &[]).params)
+                    }
+                },
+            )
+        })
+    }
+
+    /// Fit `c` on each fold's fitted part (with the carried parameters, as the step
+    /// itself) and compare the held-out part's gap with the model before the step's
+    /// (`baseline`), fold by fold. The folds run in parallel.
+    pub fn validate(&self, c: &Candidate) -> Validation {
+        let before = self.baseline();
+        let parts = folds(self.target, self.names);
+        let bar = crate::parallel::bar(
+            parts.len(),
+            &format!("held out, {}", c.name()),
+            self.progress,
+        );
+        let after = crate::parallel::map(
+            &parts,
+            &bar,
+            |(held_out, _, _)| held_out.clone(),
+            |(_, fitted, left_out)| left_out.gap(&fit(fitted, self.model, c, self.carried).params),
+        );
+        Validation {
+            effect: c.name(),
+            folds: parts
+                .iter()
+                .zip(after)
+                .zip(before)
+                .map(|(((held_out, _, _), gap_after), &gap_before)| Fold {
+                    held_out: held_out.clone(),
+                    gap_before,
+                    gap_after,
+                })
+                .collect(),
+        }
     }
 }
 
@@ -240,8 +267,7 @@ mod tests {
             joint.gap
         );
         let names = ["delayed".to_string(), "plain".to_string()];
-        let before = baseline(&target, &names, known, &[], false);
-        let v = validate(&target, &names, known, &delay, &[], &before, false);
+        let v = Judge::new(&target, &names, known, &[], false).validate(&delay);
         assert!(!v.passed(), "{v:?}");
         let plain = &v.folds[1];
         assert!(

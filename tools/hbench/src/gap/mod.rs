@@ -15,6 +15,7 @@ pub mod advice;
 pub mod analysis;
 pub mod blind;
 pub mod data;
+pub mod decision;
 pub mod drive;
 pub mod effects;
 pub mod evidence;
@@ -199,11 +200,8 @@ impl Default for Settings {
     }
 }
 
-/// Run the workflow on one or several records fitted jointly.
-pub fn run_with(start: &Params, records: &[Record], settings: Settings) -> Result<Outcome, String> {
-    let Settings {
-        progress, within, ..
-    } = settings;
+/// The records as one fitting target, each with the noise levels its data show.
+fn target_of(records: &[Record]) -> Result<Target<'_>, String> {
     let mut parts = Vec::with_capacity(records.len());
     for r in records {
         let noise = noise_levels(&r.measured);
@@ -218,7 +216,15 @@ pub fn run_with(start: &Params, records: &[Record], settings: Settings) -> Resul
     if parts.is_empty() {
         return Err("no record to analyse".into());
     }
-    let target = Target { records: parts };
+    Ok(Target { records: parts })
+}
+
+/// Run the workflow on one or several records fitted jointly.
+pub fn run_with(start: &Params, records: &[Record], settings: Settings) -> Result<Outcome, String> {
+    let Settings {
+        progress, within, ..
+    } = settings;
+    let target = target_of(records)?;
     let n = target.len() as f64;
     let blocks = target.blocks();
     let mut model = start.clone();
@@ -231,6 +237,8 @@ pub fn run_with(start: &Params, records: &[Record], settings: Settings) -> Resul
     let mut rounds: Vec<advice::Round> = Vec::new();
     let names: Vec<String> = records.iter().map(|r| r.name.clone()).collect();
     let mut refusals: Vec<holdout::Validation> = Vec::new();
+    // the known model's parameters recalibrated, for the advice's question
+    let mut recalibrated: Vec<&'static str> = Vec::new();
     let verdict = loop {
         let added = steps
             .iter()
@@ -241,7 +249,7 @@ pub fn run_with(start: &Params, records: &[Record], settings: Settings) -> Resul
         }
         let done: Vec<&str> = carried.iter().map(|f| f.path).collect();
         let open = recalibrate::candidates(&model, within, &done);
-        let fits = selection::fit_all(&target, &model, &carried, open, progress);
+        let fits = selection::fit_all(&target, &model, gap, &carried, open, progress);
         let chi2 = gap * gap * n;
         // what the residual left by the model so far is worth: a missing effect leaves
         // a coloured residual, whose samples are not independent
@@ -262,6 +270,7 @@ pub fn run_with(start: &Params, records: &[Record], settings: Settings) -> Resul
             })
             .collect();
         rounds.push(advice::Round {
+            start: model.clone(),
             tau,
             fits: scored
                 .iter()
@@ -276,15 +285,8 @@ pub fn run_with(start: &Params, records: &[Record], settings: Settings) -> Resul
                     && !refusals.iter().any(|v| v.effect == f.name)
             })
             .collect();
-        let best = selection::select(
-            eligible,
-            &target,
-            &names,
-            &model,
-            &carried,
-            &mut refusals,
-            progress,
-        );
+        let judge = holdout::Judge::new(&target, &names, &model, &carried, progress);
+        let best = selection::select(eligible, &judge, &mut refusals);
         let Some(((_, winner), validated)) = best else {
             rejected = scored.iter().map(|(s, _)| s.clone()).collect();
             final_effective = effective;
@@ -337,6 +339,9 @@ pub fn run_with(start: &Params, records: &[Record], settings: Settings) -> Resul
         // the slow passage dynamics: 480 CPU s for one record, measured)
         // a recalibrated parameter is carried too, within its recalibration bounds
         carried.extend(winner.candidate.fitted.iter().copied());
+        if winner.candidate.kind == effects::StepKind::Recalibrate {
+            recalibrated.extend(winner.candidate.fitted.iter().map(|f| f.path));
+        }
         gap = winner.gap;
     };
     let mut outcomes = Vec::with_capacity(records.len());
@@ -358,7 +363,11 @@ pub fn run_with(start: &Params, records: &[Record], settings: Settings) -> Resul
                     .flatten()
             })
         })
-        .flatten();
+        .flatten()
+        .map(|mut a| {
+            a.recalibrate = decision::open(&a.from, within, &recalibrated, &a.between);
+            a
+        });
     Ok(Outcome {
         steps,
         initial_gap,
@@ -456,6 +465,8 @@ pub fn main(
     model: Option<&Path>,
     out: &Path,
     recalibrate_within: f64,
+    between: &[String],
+    recalibrate: &[String],
 ) -> Result<(), String> {
     if !(0.0..1.0).contains(&recalibrate_within) {
         return Err(format!(
@@ -478,7 +489,12 @@ pub fn main(
         .filter_map(|p| p.canonicalize().ok())
         .collect();
     let names: Vec<&str> = records.iter().map(|r| r.name.as_str()).collect();
-    for f in report::outputs(&names) {
+    let outputs = if between.is_empty() {
+        report::outputs(&names)
+    } else {
+        decision::OUTPUTS.map(String::from).to_vec()
+    };
+    for f in outputs {
         let target = out.join(&f);
         if target.canonicalize().is_ok_and(|t| inputs.contains(&t)) {
             return Err(format!(
@@ -486,6 +502,16 @@ pub fn main(
                 target.display()
             ));
         }
+    }
+    if !between.is_empty() {
+        return decision::main(
+            &start,
+            between,
+            recalibrate,
+            &records,
+            recalibrate_within,
+            out,
+        );
     }
     let settings = Settings {
         progress: true,
@@ -516,6 +542,14 @@ pub fn main(
     println!("{}", outcome.verdict);
     if let Some(a) = &outcome.advice {
         println!("what to measure next: {}", a.recommendation);
+        if a.best.is_some() && !a.between.is_empty() {
+            println!(
+                "then decide on its record: hbench gap --data NEW.csv --experiment NEW.toml --model {} --between {}{}",
+                out.join(advice::QUESTION_MODEL).display(),
+                a.between.join(","),
+                advice::recalibrate_option(a)
+            );
+        }
     }
     println!(
         "wrote {0}/report.md, {0}/report.json, {0}/fitted_model.toml and the figures",

@@ -48,9 +48,14 @@ fn prefix(names: &[&str], name: &str) -> String {
 /// Every file the report writes for records `names` (checked against the inputs before
 /// anything is written: a user's file is never overwritten).
 pub fn outputs(names: &[&str]) -> Vec<String> {
-    let mut files: Vec<String> = ["fitted_model.toml", "report.json", "report.md"]
-        .map(String::from)
-        .to_vec();
+    let mut files: Vec<String> = [
+        "fitted_model.toml",
+        "report.json",
+        "report.md",
+        super::advice::QUESTION_MODEL,
+    ]
+    .map(String::from)
+    .to_vec();
     for name in names {
         let p = prefix(names, name);
         for f in FIGURE_FILES {
@@ -260,6 +265,12 @@ pub fn write(out: &Path, o: &Outcome) -> Result<(), String> {
     }
     let json_text = serde_json::to_string_pretty(&report).map_err(|err| err.to_string())?;
     std::fs::write(out.join("report.json"), json_text).map_err(|err| err.to_string())?;
+    if let Some(a) = &o.advice {
+        // what `hbench gap --between` fits the question's candidates from
+        let path = out.join(super::advice::QUESTION_MODEL);
+        std::fs::write(&path, a.from.to_toml())
+            .map_err(|err| format!("cannot write {}: {err}", path.display()))?;
+    }
 
     let mut md = String::from("# Model-gap report\n\n");
     for r in &o.records {

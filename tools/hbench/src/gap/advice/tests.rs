@@ -36,7 +36,7 @@ fn a_fast_valve_lag_is_told_apart_on_a_sweep_not_on_slow_moves() {
         ("as is".to_string(), known),
         ("valve_dynamics".to_string(), lagged),
     ];
-    let a = advise(&leading, &noise(), 1.0, &designs(), false);
+    let a = advise(&leading[0].1, &leading, &noise(), 1.0, &designs(), false);
     for d in &a.designs {
         let p = d.pairs.first();
         eprintln!(
@@ -87,7 +87,7 @@ fn a_fast_valve_lag_is_told_apart_on_a_sweep_not_on_slow_moves() {
         duration: 2.0,
         ..Design::standard(Kind::Moves)
     };
-    let a = advise(&leading, &noise(), 1.0, &[slow_moves], false);
+    let a = advise(&leading[0].1, &leading, &noise(), 1.0, &[slow_moves], false);
     let p = &a.designs[0].pairs[0];
     assert!(p.rms < 0.1 && p.ln_bayes_factor < CLEAR_LN_BAYES, "{p:?}");
     assert!(
@@ -111,6 +111,7 @@ fn identical_models_are_separated_by_no_advice() {
         ..Design::standard(Kind::Steps)
     };
     let a = advise(
+        &leading[0].1,
         &leading,
         &noise(),
         3.0,
@@ -181,6 +182,7 @@ fn the_advice_is_asked_when_the_record_leaves_the_leaders_undecided() {
     );
     assert_eq!(names(leading(&model, &round, None)), ["as is", "y", "z"]);
     let rounds = [Round {
+        start: Params::default(),
         tau: 1.0,
         fits: round,
     }];
@@ -241,6 +243,7 @@ fn step(name: &str, scores: &[(&str, f64)]) -> Step {
 #[test]
 fn the_advice_asks_the_earliest_undecided_step() {
     let round = |names: &[(&str, f64)]| Round {
+        start: Params::default(),
         tau: 2.0,
         fits: names.iter().map(|&(n, v)| fitted(n, v)).collect(),
     };

@@ -73,7 +73,7 @@ pub fn check(
         .collect();
     let mut leading = vec![(super::AS_IS.to_string(), model.clone())];
     leading.extend(unseen.into_iter().map(|(n, p, _)| (n, p)));
-    let mut advice = assess(&leading, noise, tau, &designs(), progress, true);
+    let mut advice = assess(model, &leading, noise, tau, &designs(), progress, true);
     advice.question = format!(
         "the model explains the data within their noise, but the record could not have shown {} at plausible sizes",
         names.join(", ")

@@ -109,6 +109,11 @@ pub fn table(cases: &[Case]) -> String {
     md
 }
 
+/// A Bayes factor in a table line.
+fn ln_b(x: Option<f64>) -> String {
+    x.map_or("-".into(), |v| format!("{v:.1}"))
+}
+
 /// How the followed advice fared (empty when the study did not follow it): of the cases
 /// whose hidden effect was not named first, in how many the workflow recommended an
 /// experiment and a record of it then named the hidden effect first.
@@ -131,17 +136,20 @@ fn advice_line(cases: &[Case]) -> String {
             .and_then(|n| n.first())
             .is_some_and(|n| c.hidden.contains(n))
     };
+    let decided = |c: &Case| c.decided.as_ref().is_some_and(|d| c.hidden.contains(d));
     let mut line = format!(
         "\nAdvice followed: {} of the {} cases whose hidden effect was not named first got a \
-         recommended experiment; a record of it named the hidden effect first in {}.\n",
+         recommended experiment; a record of it, analysed afresh, named the hidden effect first \
+         in {}; the question decided on it (`gap --between`) named it in {}.\n",
         advised.len(),
         missed.len(),
-        rate(&advised, named)
+        rate(&advised, named),
+        rate(&advised, decided)
     );
     for c in advised {
         let _ = writeln!(
             line,
-            "- {} ({}, {}): {} -> {}",
+            "- {} ({}, {}): {}: afresh {}; between {}: {} (ln B expected {}, found {})",
             c.hidden.join("+"),
             c.experiment,
             c.simulator,
@@ -152,7 +160,15 @@ fn advice_line(cases: &[Case]) -> String {
                     "nothing".into()
                 } else {
                     n.join(", ")
-                })
+                }),
+            if c.advice_between.is_empty() {
+                "-".into()
+            } else {
+                c.advice_between.join(", ")
+            },
+            c.decided.as_deref().unwrap_or("nothing"),
+            ln_b(c.expected_ln_bayes),
+            ln_b(c.found_ln_bayes)
         );
     }
     line
