@@ -26,7 +26,7 @@ use super::effects::{self, Candidate, Fitted, StepKind};
 use super::evidence::{self, Preference};
 use super::fit::fit;
 use super::holdout::{Judge, Validation};
-use super::{json_values, recalibrate, target_of, Record, Scored, MIN_IMPROVEMENT};
+use super::{effective_samples, recalibrate, target_of, Record, Scored};
 
 /// What the records say about the question.
 #[derive(Debug, Clone, Serialize)]
@@ -178,9 +178,7 @@ pub fn decide(
     if !gap.is_finite() {
         return Err("the question's model cannot be simulated under these records".into());
     }
-    let (effective, _) = target.residuals(model).map_or((n, 1.0), |r| {
-        evidence::effective_samples(r.as_slice(), &target.blocks())
-    });
+    let (effective, _) = effective_samples(&target, model);
     let bar = crate::parallel::bar(candidates.len(), "deciding", progress);
     let fits = crate::parallel::map(&candidates, &bar, Candidate::name, |c| {
         fit(&target, model, c, &carried)
@@ -188,12 +186,7 @@ pub fn decide(
     let chi2 = gap * gap * n;
     let scored: Vec<Scored> = fits
         .iter()
-        .map(|f| Scored {
-            effect: f.name.clone(),
-            gap: f.gap,
-            score: evidence::score(chi2, f.chi2, effective, f.values.len() as f64),
-            parameters: json_values(&f.values),
-        })
+        .map(|f| Scored::of(f, chi2, effective))
         .collect();
     let preference = evidence::preference(
         &scored
@@ -204,7 +197,7 @@ pub fn decide(
     );
     // the eligible candidates, best first; an added effect must pass the held-out check
     let mut order: Vec<usize> = (0..fits.len())
-        .filter(|&k| scored[k].score > 0.0 && fits[k].gap < (1.0 - MIN_IMPROVEMENT) * gap)
+        .filter(|&k| scored[k].worth_adding(gap))
         .collect();
     order.sort_by(|&a, &b| scored[b].score.total_cmp(&scored[a].score));
     let record_names: Vec<String> = records.iter().map(|r| r.name.clone()).collect();

@@ -91,6 +91,34 @@ pub struct Scored {
     pub parameters: serde_json::Map<String, serde_json::Value>,
 }
 
+impl Scored {
+    /// `f` scored against the model before it: a residual of chi-square `chi2` worth
+    /// `effective` independent samples (`evidence::score`).
+    fn of(f: &Fit, chi2: f64, effective: f64) -> Scored {
+        Scored {
+            effect: f.name.clone(),
+            gap: f.gap,
+            score: evidence::score(chi2, f.chi2, effective, f.values.len() as f64),
+            parameters: json_values(&f.values),
+        }
+    }
+
+    /// It pays its price and lowers the gap `before` by more than MIN_IMPROVEMENT.
+    fn worth_adding(&self, before: f64) -> bool {
+        self.score > 0.0 && self.gap < (1.0 - MIN_IMPROVEMENT) * before
+    }
+}
+
+/// Independent samples the residual of `model` on `target` is worth (N / tau) and its
+/// correlation time tau: a missing effect leaves a coloured residual, whose samples are
+/// not independent. (N, 1) when the model cannot be simulated.
+fn effective_samples(target: &Target, model: &Params) -> (f64, f64) {
+    let n = target.len() as f64;
+    target.residuals(model).map_or((n, 1.0), |r| {
+        evidence::effective_samples(r.as_slice(), &target.blocks())
+    })
+}
+
 /// One record handed to the workflow: how the bench was driven and what it recorded.
 pub struct Record {
     /// What the reports call it (the data file's stem).
@@ -226,7 +254,6 @@ pub fn run_with(start: &Params, records: &[Record], settings: Settings) -> Resul
     } = settings;
     let target = target_of(records)?;
     let n = target.len() as f64;
-    let blocks = target.blocks();
     let mut model = start.clone();
     let initial_gap = target.gap(&model);
     let mut gap = initial_gap;
@@ -253,21 +280,10 @@ pub fn run_with(start: &Params, records: &[Record], settings: Settings) -> Resul
         let chi2 = gap * gap * n;
         // what the residual left by the model so far is worth: a missing effect leaves
         // a coloured residual, whose samples are not independent
-        let (effective, tau) = target.residuals(&model).map_or((n, 1.0), |r| {
-            evidence::effective_samples(r.as_slice(), &blocks)
-        });
+        let (effective, tau) = effective_samples(&target, &model);
         let scored: Vec<(Scored, &Fit)> = fits
             .iter()
-            .map(|f| {
-                let k = f.values.len() as f64;
-                let s = Scored {
-                    effect: f.name.clone(),
-                    gap: f.gap,
-                    score: evidence::score(chi2, f.chi2, effective, k),
-                    parameters: json_values(&f.values),
-                };
-                (s, f)
-            })
+            .map(|f| (Scored::of(f, chi2, effective), f))
             .collect();
         rounds.push(advice::Round {
             start: model.clone(),
@@ -279,11 +295,7 @@ pub fn run_with(start: &Params, records: &[Record], settings: Settings) -> Resul
         });
         let eligible: Vec<&(Scored, &Fit)> = scored
             .iter()
-            .filter(|(s, f)| {
-                s.score > 0.0
-                    && f.gap < (1.0 - MIN_IMPROVEMENT) * gap
-                    && !refusals.iter().any(|v| v.effect == f.name)
-            })
+            .filter(|(s, f)| s.worth_adding(gap) && !refusals.iter().any(|v| v.effect == f.name))
             .collect();
         let judge = holdout::Judge::new(&target, &names, &model, &carried, progress);
         let best = selection::select(eligible, &judge, &mut refusals);
