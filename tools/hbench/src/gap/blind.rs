@@ -85,6 +85,9 @@ pub struct Case {
     /// Effects that won a round but were refused on the data they were not fitted on.
     #[serde(default)]
     pub refused: Vec<String>,
+    /// A contested step asked again at the end of the run (`revision::Revision`).
+    #[serde(default)]
+    pub revision: Option<serde_json::Value>,
 }
 
 fn rust_name() -> String {
@@ -352,6 +355,10 @@ pub fn case_advised(
         found_ln_bayes: None,
         decision: None,
         refused: outcome.refusals.iter().map(|v| v.effect.clone()).collect(),
+        revision: outcome
+            .revision
+            .as_ref()
+            .and_then(|r| serde_json::to_value(r).ok()),
     };
     let recommended = outcome.advice.as_ref().and_then(|a| {
         let best = a.best.as_ref()?;

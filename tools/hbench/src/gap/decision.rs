@@ -24,7 +24,7 @@ use serde::Serialize;
 use super::advice::AS_IS;
 use super::effects::{self, Candidate, Fitted, StepKind};
 use super::evidence::{self, Preference};
-use super::fit::fit;
+use super::fit::{fit, Fit, Target};
 use super::holdout::{Judge, Validation};
 use super::{effective_samples, recalibrate, target_of, Record, Scored};
 
@@ -126,6 +126,31 @@ fn refitted(
     Ok((fitted, switches))
 }
 
+/// A question asked on a fitting target: the decision, and what it was made from.
+pub struct Asked {
+    pub decision: Decision,
+    /// The question's model with the recalibrations asked for re-fitted (None when none
+    /// were asked for): the model every candidate is scored against.
+    pub baseline: Option<Fit>,
+    /// Each candidate's fit, in the order of `decision.candidates`.
+    pub fits: Vec<Fit>,
+    /// Index of the winner in `fits`.
+    pub won: Option<usize>,
+    /// Correlation time of the residual of the re-fitted model.
+    pub tau: f64,
+}
+
+impl Asked {
+    /// The model the decision leaves: the winner's, or the re-fitted question's model.
+    pub fn decided(&self, question: &Params) -> Params {
+        match (self.won, &self.baseline) {
+            (Some(k), _) => self.fits[k].params.clone(),
+            (None, Some(b)) => b.params.clone(),
+            (None, None) => question.clone(),
+        }
+    }
+}
+
 /// Compare the candidates `between` on `records`, each fitted from `model` with the
 /// parameters `recalibrate` re-fitted jointly, as a step of the workflow carries the
 /// parameters re-fitted before it. The model they are scored against is `model` with
@@ -139,6 +164,31 @@ pub fn decide(
     within: f64,
     progress: bool,
 ) -> Result<(Decision, Params), String> {
+    let target = target_of(records)?;
+    let names: Vec<String> = records.iter().map(|r| r.name.clone()).collect();
+    let asked = ask(
+        model,
+        between,
+        recalibrate,
+        &target,
+        &names,
+        within,
+        progress,
+    )?;
+    let decided = asked.decided(model);
+    Ok((asked.decision, decided))
+}
+
+/// `decide` on a fitting target whose records are called `record_names`.
+pub fn ask(
+    model: &Params,
+    between: &[String],
+    recalibrate: &[String],
+    target: &Target,
+    record_names: &[String],
+    within: f64,
+    progress: bool,
+) -> Result<Asked, String> {
     let mut names: Vec<&str> = Vec::new();
     for n in between.iter().map(String::as_str).filter(|n| *n != AS_IS) {
         if !names.contains(&n) {
@@ -159,12 +209,9 @@ pub fn decide(
             .iter()
             .any(|c| c.fitted.iter().any(|g| g.path == f.path))
     });
-    let target = target_of(records)?;
     let n = target.len() as f64;
     // the question's model with its recalibrations re-fitted on the new records
-    let model = &if carried.is_empty() {
-        model.clone()
-    } else {
+    let baseline = (!carried.is_empty()).then(|| {
         let refit = Candidate {
             kind: StepKind::Recalibrate,
             effect: None,
@@ -172,16 +219,17 @@ pub fn decide(
             signature: "the known model's recalibrations",
             switches_on,
         };
-        fit(&target, model, &refit, &[]).params
-    };
+        fit(target, model, &refit, &[])
+    });
+    let model = baseline.as_ref().map_or(model, |b| &b.params);
     let gap = target.gap(model);
     if !gap.is_finite() {
         return Err("the question's model cannot be simulated under these records".into());
     }
-    let (effective, _) = effective_samples(&target, model);
+    let (effective, tau) = effective_samples(target, model);
     let bar = crate::parallel::bar(candidates.len(), "deciding", progress);
     let fits = crate::parallel::map(&candidates, &bar, Candidate::name, |c| {
-        fit(&target, model, c, &carried)
+        fit(target, model, c, &carried)
     });
     let chi2 = gap * gap * n;
     let scored: Vec<Scored> = fits
@@ -200,8 +248,7 @@ pub fn decide(
         .filter(|&k| scored[k].worth_adding(gap))
         .collect();
     order.sort_by(|&a, &b| scored[b].score.total_cmp(&scored[a].score));
-    let record_names: Vec<String> = records.iter().map(|r| r.name.clone()).collect();
-    let judge = Judge::new(&target, &record_names, model, &carried, progress);
+    let judge = Judge::new(target, record_names, model, &carried, progress);
     let (mut refused, mut won) = (Vec::new(), None);
     for k in order {
         let c = &fits[k].candidate;
@@ -222,22 +269,23 @@ pub fn decide(
         &refused,
     );
     let winner = won.as_ref().map(|(k, _)| scored[*k].effect.clone());
-    let decided = won
-        .as_ref()
-        .map_or_else(|| model.clone(), |(k, _)| fits[*k].params.clone());
-    Ok((
-        Decision {
+    let (won, validation) = won.map_or((None, None), |(k, v)| (Some(k), v));
+    Ok(Asked {
+        decision: Decision {
             gap_before: gap,
             effective_samples: effective,
             candidates: scored,
             preference,
             refused,
-            validation: won.and_then(|(_, v)| v),
+            validation,
             winner,
             verdict,
         },
-        decided,
-    ))
+        baseline,
+        fits,
+        won,
+        tau,
+    })
 }
 
 /// The decision in words.

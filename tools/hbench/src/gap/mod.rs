@@ -27,6 +27,8 @@ pub mod peer;
 pub mod recalibrate;
 mod report;
 pub mod resonance;
+mod revision;
+mod search;
 mod selection;
 pub mod variants;
 
@@ -162,6 +164,9 @@ pub struct Outcome {
     pub advice: Option<advice::Advice>,
     /// Effects that won a round but did not improve the data they were not fitted on.
     pub refusals: Vec<holdout::Validation>,
+    /// A contested step asked again with the run's later recalibrations, and whether the
+    /// run was continued from its answer.
+    pub revision: Option<revision::Revision>,
 }
 
 /// Noise of every compared signal the data hold.
@@ -253,109 +258,27 @@ pub fn run_with(start: &Params, records: &[Record], settings: Settings) -> Resul
         progress, within, ..
     } = settings;
     let target = target_of(records)?;
-    let n = target.len() as f64;
-    let mut model = start.clone();
-    let initial_gap = target.gap(&model);
-    let mut gap = initial_gap;
-    let mut steps = Vec::new();
-    let mut carried: Vec<effects::Fitted> = Vec::new();
-    let (mut rejected, mut final_effective) = (Vec::new(), n);
-    // every round's tau and (score, fit) of each candidate, for the advice
-    let mut rounds: Vec<advice::Round> = Vec::new();
+    let initial_gap = target.gap(start);
     let names: Vec<String> = records.iter().map(|r| r.name.clone()).collect();
-    let mut refusals: Vec<holdout::Validation> = Vec::new();
-    // the known model's parameters recalibrated, for the advice's question
-    let mut recalibrated: Vec<&'static str> = Vec::new();
-    let verdict = loop {
-        let added = steps
-            .iter()
-            .filter(|s: &&Step| s.kind == effects::StepKind::Add)
-            .count();
-        if added == MAX_STEPS {
-            break format!("stopped after {MAX_STEPS} effects with the gap at {gap:.2}");
-        }
-        let done: Vec<&str> = carried.iter().map(|f| f.path).collect();
-        let open = recalibrate::candidates(&model, within, &done);
-        let fits = selection::fit_all(&target, &model, gap, &carried, open, progress);
-        let chi2 = gap * gap * n;
-        // what the residual left by the model so far is worth: a missing effect leaves
-        // a coloured residual, whose samples are not independent
-        let (effective, tau) = effective_samples(&target, &model);
-        let scored: Vec<(Scored, &Fit)> = fits
-            .iter()
-            .map(|f| (Scored::of(f, chi2, effective), f))
-            .collect();
-        rounds.push(advice::Round {
-            start: model.clone(),
-            tau,
-            fits: scored
-                .iter()
-                .map(|(s, f)| (s.score, (*f).clone()))
-                .collect(),
-        });
-        let eligible: Vec<&(Scored, &Fit)> = scored
-            .iter()
-            .filter(|(s, f)| s.worth_adding(gap) && !refusals.iter().any(|v| v.effect == f.name))
-            .collect();
-        let judge = holdout::Judge::new(&target, &names, &model, &carried, progress);
-        let best = selection::select(eligible, &judge, &mut refusals);
-        let Some(((_, winner), validated)) = best else {
-            rejected = scored.iter().map(|(s, _)| s.clone()).collect();
-            final_effective = effective;
-            break if gap <= NOISE_FLOOR_GAP {
-                format!("the model explains the data within their noise (gap {gap:.2}, noise floor 1); no effect adds more than its complexity price")
-            } else {
-                format!(
-                    "no candidate effect lowers the gap ({gap:.2}) by more than {:.0} % and its complexity price{}",
-                    MIN_IMPROVEMENT * 100.0,
-                    if refusals.is_empty() {
-                        String::new()
-                    } else {
-                        let effects: Vec<&str> = refusals.iter().map(|v| v.effect.as_str()).collect();
-                        format!(" and improves the data it was not fitted on (refused: {})", effects.join(", "))
-                    }
-                )
-            };
-        };
-        let brings: Vec<hbmodel::Effect> = match (winner.candidate.kind, winner.candidate.effect) {
-            (effects::StepKind::Add, Some(e)) => e
-                .spec()
-                .requires
-                .iter()
-                .copied()
-                .filter(|r| !model.has(*r))
-                .collect(),
-            _ => Vec::new(),
-        };
-        steps.push(Step {
-            kind: winner.candidate.kind,
-            effect: winner.candidate.effect.map(|e| e.name().to_string()),
-            name: winner.name.clone(),
-            brings: brings.iter().map(|e| e.name().to_string()).collect(),
-            parameters: json_values(&winner.values),
-            gap_before: gap,
-            gap_after: winner.gap,
-            candidates: scored.iter().map(|(s, _)| s.clone()).collect(),
-            effective_samples: effective,
-            validation: validated,
-            preference: evidence::preference(
-                &scored
-                    .iter()
-                    .map(|(s, _)| (s.effect.clone(), s.score))
-                    .collect::<Vec<_>>(),
-            ),
-        });
-        model = winner.params.clone();
-        // later fits re-adjust what came in; brought-along effects stay at their
-        // built-in sizes (re-fitting them too made each later fit 4-parametric with
-        // the slow passage dynamics: 480 CPU s for one record, measured)
-        // a recalibrated parameter is carried too, within its recalibration bounds
-        carried.extend(winner.candidate.fitted.iter().copied());
-        if winner.candidate.kind == effects::StepKind::Recalibrate {
-            recalibrated.extend(winner.candidate.fitted.iter().map(|f| f.path));
-        }
-        gap = winner.gap;
-    };
+    let mut search = search::Search::new(&target, &names, start, within, progress);
+    search.run();
+    // a step the record could not decide, asked again with what the run learned later
+    let revision = revision::reask(&search, within, progress);
+    if let Some(revised) = revision.as_ref().and_then(|r| r.kept.clone()) {
+        search = revised;
+    }
+    let search::Search {
+        model,
+        gap,
+        steps,
+        rounds,
+        refusals,
+        recalibrated,
+        rejected,
+        effective: final_effective,
+        verdict,
+        ..
+    } = search;
     let mut outcomes = Vec::with_capacity(records.len());
     for (r, part) in records.iter().zip(&target.records) {
         outcomes.push(describe_record(r, part, start, &model)?);
@@ -393,6 +316,7 @@ pub fn run_with(start: &Params, records: &[Record], settings: Settings) -> Resul
         effective_samples: final_effective,
         advice,
         refusals,
+        revision: revision.map(|r| r.report),
     })
 }
 

@@ -256,6 +256,7 @@ pub fn write(out: &Path, o: &Outcome) -> Result<(), String> {
         "figures": figures,
         "advice": o.advice,
         "refused_on_held_out_data": o.refusals,
+        "revision": o.revision,
     });
     // a single record keeps the fields of one-record reports at the top level
     if let [r] = o.records.as_slice() {
@@ -370,6 +371,9 @@ pub fn write(out: &Path, o: &Outcome) -> Result<(), String> {
         for s in describe(&r.last) {
             let _ = writeln!(md, "- {s}");
         }
+    }
+    if let Some(r) = &o.revision {
+        let _ = writeln!(md, "\n## Step {} asked again\n\n{}.", r.step + 1, r.verdict);
     }
     if !o.refusals.is_empty() {
         md.push_str("\n## Refused: better on what they were fitted on, worse on the rest\n\n");

@@ -106,7 +106,76 @@ pub fn table(cases: &[Case]) -> String {
     }
     row(&mut md, "**all**", cases.iter().collect());
     md.push_str(&advice_line(cases));
+    md.push_str(&revision_line(cases));
     md
+}
+
+/// The runs whose contested step was asked again at their end (`revision`), and what
+/// came of it (empty when none was).
+fn revision_line(cases: &[Case]) -> String {
+    let asked: Vec<(&Case, &serde_json::Value)> = cases
+        .iter()
+        .filter_map(|c| Some((c, c.revision.as_ref()?)))
+        .collect();
+    if asked.is_empty() {
+        return String::new();
+    }
+    let kept = asked
+        .iter()
+        .filter(|(_, r)| r["revised"].as_bool() == Some(true))
+        .count();
+    let mut line = format!(
+        "\nAsked again at the end of the run (a contested step, with the later recalibrations \
+         re-fitted): {} runs, continued from the rival and kept in {kept}.\n",
+        asked.len()
+    );
+    let added = |p: &serde_json::Value| {
+        let names: Vec<&str> = p["added"]
+            .as_array()
+            .map(|a| a.iter().filter_map(|n| n.as_str()).collect())
+            .unwrap_or_default();
+        if names.is_empty() {
+            "nothing".to_string()
+        } else {
+            names.join(", ")
+        }
+    };
+    for (c, r) in asked {
+        let hidden = if c.hidden.is_empty() {
+            "none".to_string()
+        } else {
+            c.hidden.join("+")
+        };
+        let _ = writeln!(
+            line,
+            "- {hidden} ({}, {}): step {} between {}: {} (ln B {}); added {} -> {}{}",
+            c.experiment,
+            c.simulator,
+            r["step"].as_u64().map_or(0, |k| k + 1),
+            r["between"]
+                .as_array()
+                .map(|a| a
+                    .iter()
+                    .filter_map(|n| n.as_str())
+                    .collect::<Vec<_>>()
+                    .join(" or "))
+                .unwrap_or_default(),
+            r["decision"]["winner"].as_str().unwrap_or("nothing"),
+            ln_b(r["decision"]["preference"]["ln_bayes_factor"].as_f64()),
+            added(&r["original"]),
+            if r["continued"].is_null() {
+                "(not continued)".to_string()
+            } else {
+                added(&r["continued"])
+            },
+            if r["revised"].as_bool() == Some(true) {
+                " (kept)"
+            } else {
+                ""
+            }
+        );
+    }
+    line
 }
 
 /// A Bayes factor in a table line.
