@@ -437,8 +437,15 @@ mod tests {
         .expect("decides");
         assert_eq!(d.winner, None, "{d:?}");
         assert_eq!(decided.to_toml(), plain.known.to_toml());
-        let err = decide(&plain.known, &["no_such".into()], &[], &[], 0.15, false)
-            .expect_err("no such candidate");
+        let err = decide(
+            &plain.known,
+            &["no_such".into()],
+            &[],
+            &[steps(&plain, 2)],
+            0.15,
+            false,
+        )
+        .expect_err("no such candidate");
         assert!(
             err.contains("--between no_such") && err.contains("sensor_delay"),
             "{err}"
