@@ -109,11 +109,7 @@ impl<'t> Search<'t> {
     fn round(&mut self) -> Option<String> {
         let (target, gap) = (self.target, self.gap);
         let n = target.len() as f64;
-        self.marks.push(Mark {
-            carried: self.carried.len(),
-            recalibrated: self.recalibrated.len(),
-            refusals: self.refusals.len(),
-        });
+        self.mark();
         let done: Vec<&str> = self.carried.iter().map(|f| f.path).collect();
         let open = recalibrate::candidates(&self.model, self.within, &done);
         let fits = selection::fit_all(target, &self.model, gap, &self.carried, open, self.progress);
@@ -165,6 +161,15 @@ impl<'t> Search<'t> {
         None
     }
 
+    /// Note how far each list has grown as a round starts.
+    fn mark(&mut self) {
+        self.marks.push(Mark {
+            carried: self.carried.len(),
+            recalibrated: self.recalibrated.len(),
+            refusals: self.refusals.len(),
+        });
+    }
+
     /// Why a search that added nothing in its last round ended.
     fn stopped(&self) -> String {
         let gap = self.gap;
@@ -194,11 +199,7 @@ impl<'t> Search<'t> {
     pub fn take(&mut self, step: Step, round: advice::Round, winner: &Fit) {
         if self.marks.len() == self.rounds.len() {
             // a step taken without a round of this search's own (`revision`)
-            self.marks.push(Mark {
-                carried: self.carried.len(),
-                recalibrated: self.recalibrated.len(),
-                refusals: self.refusals.len(),
-            });
+            self.mark();
         }
         self.rounds.push(round);
         self.gap = winner.gap;
