@@ -95,10 +95,17 @@ pub struct Round {
 }
 
 /// The candidate a step could not tell from the one it took, if any: the step's
-/// preference is no clear one and the rival paid its price too. The rival is the best
-/// scorer, or the runner-up when the step took the best (a recalibration is taken over a
-/// close effect, `selection::choose`).
+/// preference is no clear one and the rival paid its price too (`rival`).
 pub fn contested(step: &Step) -> Option<&str> {
+    let p = step.preference.as_ref()?;
+    // the verdict's words derive from this number (`evidence::preference`)
+    rival(step).filter(|_| p.ln_bayes_factor < CLEAR_LN_BAYES)
+}
+
+/// The step's rival when it paid its price: the best scorer, or the runner-up when the
+/// step took the best (a recalibration is taken over a close effect,
+/// `selection::choose`).
+pub fn rival(step: &Step) -> Option<&str> {
     let p = step.preference.as_ref()?;
     let rival = if p.best == step.name {
         &p.runner_up
@@ -109,8 +116,7 @@ pub fn contested(step: &Step) -> Option<&str> {
         .candidates
         .iter()
         .any(|c| &c.effect == rival && c.score > 0.0);
-    // the verdict's words derive from this number (`evidence::preference`)
-    (p.ln_bayes_factor < CLEAR_LN_BAYES && paid).then_some(rival.as_str())
+    paid.then_some(rival.as_str())
 }
 
 /// Whether the record left something to tell apart: the run stopped above the noise

@@ -40,6 +40,10 @@ pub struct Case {
     /// hidden).
     pub truth: Option<f64>,
     pub fitted: Option<f64>,
+    /// The fit's standard error (`fit::spread`; absent in studies run before it was
+    /// recorded).
+    #[serde(default)]
+    pub fitted_std: Option<f64>,
     pub initial_gap: f64,
     pub remaining_gap: f64,
     /// Mean square, over the compared samples, of what the hidden effects change in the
@@ -312,7 +316,12 @@ pub fn case_advised(
                 .first()
                 .is_some_and(|h| base.has(*h) && s.effect.as_deref() == Some(h.name())),
         })
-        .find_map(|s| s.parameters.get(path).and_then(|v| v.as_f64()));
+        .find_map(|s| {
+            let v = s.parameters.get(path)?.as_f64()?;
+            let std = s.spread.iter().find(|x| x.path == path).and_then(|x| x.std);
+            Some((v, std))
+        });
+    let (fitted, fitted_std) = fitted.map_or((None, None), |(v, d)| (Some(v), d));
     // an effect that needs others brings them along: they are hidden too
     let mut all_hidden: Vec<Effect> = Vec::new();
     for e in hidden {
@@ -340,6 +349,7 @@ pub fn case_advised(
             .collect(),
         truth: value,
         fitted,
+        fitted_std,
         initial_gap: outcome.initial_gap,
         remaining_gap: outcome.remaining_gap,
         visibility: Some(visible),

@@ -26,7 +26,7 @@ use super::effects::{self, Candidate, Fitted, StepKind};
 use super::evidence::{self, Preference};
 use super::fit::{fit, Fit, Target};
 use super::holdout::{Judge, Validation};
-use super::{effective_samples, recalibrate, target_of, Record, Scored};
+use super::{effective_samples, recalibrate, selection, target_of, Record, Scored};
 
 /// What the records say about the question.
 #[derive(Debug, Clone, Serialize)]
@@ -243,26 +243,20 @@ pub fn ask(
             .chain(std::iter::once((AS_IS.to_string(), 0.0)))
             .collect::<Vec<_>>(),
     );
-    // the eligible candidates, best first; an added effect must pass the held-out check
-    let mut order: Vec<usize> = (0..fits.len())
-        .filter(|&k| scored[k].worth_adding(gap))
-        .collect();
-    order.sort_by(|&a, &b| scored[b].score.total_cmp(&scored[a].score));
+    // the step the workflow would take among them (`selection::select`): a close
+    // recalibration before an effect, and an added effect must pass the held-out check
+    let pairs: Vec<(Scored, &Fit)> = scored.iter().cloned().zip(&fits).collect();
+    let eligible: Vec<&(Scored, &Fit)> =
+        pairs.iter().filter(|(s, _)| s.worth_adding(gap)).collect();
     let judge = Judge::new(target, record_names, model, &carried, progress);
-    let (mut refused, mut won) = (Vec::new(), None);
-    for k in order {
-        let c = &fits[k].candidate;
-        if c.kind != StepKind::Add {
-            won = Some((k, None));
-            break;
-        }
-        let v = judge.validate(c);
-        if v.passed() {
-            won = Some((k, Some(v)));
-            break;
-        }
-        refused.push(v);
-    }
+    let mut refused = Vec::new();
+    let won = selection::select(eligible, &judge, &mut refused).map(|(chosen, v)| {
+        let k = pairs
+            .iter()
+            .position(|p| std::ptr::eq(p, chosen))
+            .expect("chosen among the pairs");
+        (k, v)
+    });
     let verdict = verdict(
         won.as_ref().map(|(k, _)| &scored[*k]),
         preference.as_ref(),
@@ -386,24 +380,14 @@ pub const OUTPUTS: [&str; 3] = ["decision.md", "decision.json", "fitted_model.to
 #[cfg(test)]
 mod tests {
     use hbmodel::effects::Effect;
-    use hbmodel::sensors::SensorParams;
 
     use super::*;
     use crate::gap::blind::Setup;
-    use crate::gap::hide::{measure_truth, Kind};
+    use crate::gap::hide::Kind;
     use crate::gap::variants::Simulator;
 
     fn steps(s: &Setup, seed: u64) -> Record {
-        let sp = SensorParams {
-            seed,
-            ..SensorParams::default()
-        };
-        let (experiment, measured) = measure_truth(&s.bench, Kind::Steps, &sp).expect("runs");
-        Record {
-            name: "steps".into(),
-            experiment,
-            measured,
-        }
+        crate::gap::tests::record(s, Kind::Steps, seed)
     }
 
     /// A sensor delay hidden in +-10 mm steps, asked against a valve lag (both slow the

@@ -33,7 +33,7 @@ mod selection;
 pub mod variants;
 
 #[cfg(test)]
-mod tests;
+pub(crate) mod tests;
 
 use std::path::{Path, PathBuf};
 
@@ -83,6 +83,9 @@ pub struct Step {
     pub preference: Option<evidence::Preference>,
     /// The added effect fitted without part of the data, judged on that part (`holdout`).
     pub validation: Option<holdout::Validation>,
+    /// How well the record pins each parameter the step fitted (`fit::spread`); empty
+    /// for a step re-fitted before a re-ask.
+    pub spread: Vec<fit::Spread>,
 }
 
 #[derive(Debug, Clone, Serialize)]

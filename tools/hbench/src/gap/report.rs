@@ -266,11 +266,16 @@ pub fn write(out: &Path, o: &Outcome) -> Result<(), String> {
     }
     let json_text = serde_json::to_string_pretty(&report).map_err(|err| err.to_string())?;
     std::fs::write(out.join("report.json"), json_text).map_err(|err| err.to_string())?;
+    let path = out.join(super::advice::QUESTION_MODEL);
     if let Some(a) = &o.advice {
         // what `hbench gap --between` fits the question's candidates from
-        let path = out.join(super::advice::QUESTION_MODEL);
         std::fs::write(&path, a.from.to_toml())
             .map_err(|err| format!("cannot write {}: {err}", path.display()))?;
+    } else if path.is_file() {
+        // an earlier run's question, left beside a report that asks none, would be taken
+        // for this one's (the file is among `outputs`, checked to be no input)
+        std::fs::remove_file(&path)
+            .map_err(|err| format!("cannot remove {}: {err}", path.display()))?;
     }
 
     let mut md = String::from("# Model-gap report\n\n");
@@ -343,12 +348,19 @@ pub fn write(out: &Path, o: &Outcome) -> Result<(), String> {
         }
         let _ = writeln!(
             md,
-            "{}Fitted: {}. Gap {:.2} -> {:.2}.\n\n| candidate | gap after fit | score (N_eff ln(chi2 / chi2') - k ln N_eff) | parameters |\n|---|---|---|---|",
+            "{}Fitted: {}. Gap {:.2} -> {:.2}.",
             step.validation.as_ref().map_or(String::new(), held_out),
-            step.parameters.iter().map(|(k, v)| format!("{k} = {v}")).collect::<Vec<_>>().join(", "),
+            fitted_values(step),
             step.gap_before,
             step.gap_after
         );
+        // a step the run's revision re-fitted before asking again had no candidates
+        if !step.candidates.is_empty() {
+            let _ = writeln!(
+                md,
+                "\n| candidate | gap after fit | score (N_eff ln(chi2 / chi2') - k ln N_eff) | parameters |\n|---|---|---|---|"
+            );
+        }
         let mut c = step.candidates.clone();
         c.sort_by(|a, b| b.score.total_cmp(&a.score));
         for s in c {
@@ -415,6 +427,44 @@ fn list<'a>(names: impl Iterator<Item = &'a str>) -> String {
         v.join(", ")
     }
 }
+
+/// A step's fitted parameters, each with its standard error and the parameter it is
+/// most correlated with when the correlation is strong (`fit::spread`).
+fn fitted_values(step: &super::Step) -> String {
+    if step.spread.is_empty() {
+        return step
+            .parameters
+            .iter()
+            .map(|(k, v)| format!("{k} = {v}"))
+            .collect::<Vec<_>>()
+            .join(", ");
+    }
+    step.spread
+        .iter()
+        .map(|s| {
+            let std = s
+                .std
+                .map_or(" (not pinned by the record)".to_string(), |d| {
+                    format!(" +- {d:.3e} (1 s.e.)")
+                });
+            // a correlation this strong means the record trades the two
+            let with = s
+                .most_correlated
+                .filter(|c| c.r.abs() >= STRONG_CORRELATION)
+                .map_or(String::new(), |c| {
+                    format!(", correlated {:.2} with {}", c.r, c.with)
+                });
+            format!("{} = {:.4e}{std}{with}", s.path, s.value)
+        })
+        .collect::<Vec<_>>()
+        .join("; ")
+}
+
+/// A correlation between two fitted parameters above which the report names the pair:
+/// at 0.8 the standard error of either is 1.7 times what it would be with the other
+/// fixed (1 / sqrt(1 - r^2)). The Coulomb and viscous friction fitted together on +-10 mm
+/// steps are correlated -0.81 (measured, test in `fit`).
+const STRONG_CORRELATION: f64 = 0.8;
 
 #[cfg(test)]
 mod tests {

@@ -6,7 +6,7 @@
 use hbmodel::Params;
 
 use super::effects::{Fitted, StepKind};
-use super::fit::{Fit, Target};
+use super::fit::{self, Fit, Target};
 use super::holdout::{self, Validation};
 use super::{
     advice, effective_samples, evidence, json_values, recalibrate, selection, Scored, Step,
@@ -149,7 +149,7 @@ impl<'t> Search<'t> {
             self.effective = effective;
             return Some(self.stopped());
         };
-        let step = step_of(
+        let mut step = step_of(
             winner,
             &self.model,
             gap,
@@ -157,6 +157,7 @@ impl<'t> Search<'t> {
             effective,
             validated,
         );
+        step.spread = fit::spread(target, winner, tau);
         self.take(step, round, winner);
         None
     }
@@ -274,5 +275,6 @@ pub fn step_of(
         effective_samples: effective,
         validation,
         preference,
+        spread: Vec::new(),
     }
 }

@@ -9,7 +9,9 @@ use super::hide::{measure_truth, Kind, Truth};
 use super::variants::{section_4_4, FormError, Simulator};
 use super::{run_with, Outcome, Record, Settings};
 
-fn record(s: &Setup, kind: Kind, seed: u64) -> Record {
+/// A record of `s`'s bench under `kind`, its sensor noise drawn from `seed` (the other
+/// gap test modules use it too).
+pub(crate) fn record(s: &Setup, kind: Kind, seed: u64) -> Record {
     let sp = SensorParams {
         seed,
         ..SensorParams::default()
@@ -117,4 +119,41 @@ fn a_pressure_sensor_lag_is_no_sensor_delay() {
         .map(|st| (&st.name, &st.parameters))
         .collect();
     assert!(added.is_empty(), "added {added:?}");
+}
+
+/// A report that asks no question leaves no question model behind: an earlier run's
+/// `question_model.toml` in the same folder would be taken for this report's.
+#[test]
+fn an_earlier_runs_question_model_does_not_outlive_its_report() {
+    let s = Setup::new(Simulator::Rust, false, &[Effect::SensorDelay], 2);
+    let r = record(&s, Kind::Steps, 2);
+    let dir = std::env::temp_dir().join(format!("hb-stale-{}", std::process::id()));
+    let out = dir.join("report");
+    std::fs::create_dir_all(&out).expect("a temporary folder");
+    let (csv, toml, model) = (
+        dir.join("measured.csv"),
+        dir.join("experiment.toml"),
+        dir.join("known.toml"),
+    );
+    std::fs::write(&csv, r.measured.to_csv()).expect("written");
+    std::fs::write(&toml, r.experiment.to_toml()).expect("written");
+    std::fs::write(&model, s.known.to_toml()).expect("written");
+    let question = out.join(super::advice::QUESTION_MODEL);
+    std::fs::write(&question, "# an earlier run's question\n").expect("written");
+    super::main(
+        std::slice::from_ref(&csv),
+        std::slice::from_ref(&toml),
+        Some(&model),
+        &out,
+        0.15,
+        &[],
+        &[],
+    )
+    .expect("the workflow runs");
+    let text = std::fs::read_to_string(out.join("report.json")).expect("written");
+    let report: serde_json::Value = serde_json::from_str(&text).expect("JSON");
+    // the delay is named and the record explained: no question
+    assert!(report["advice"].is_null(), "{}", report["advice"]);
+    assert!(!question.exists(), "the earlier question was left");
+    let _ = std::fs::remove_dir_all(&dir);
 }

@@ -148,6 +148,7 @@ fn fitted(name: &str, score: f64) -> (f64, Fit) {
             signature: "",
             switches_on: &[],
         },
+        carried: Vec::new(),
         name: name.into(),
         params,
         values: Vec::new(),
@@ -233,6 +234,7 @@ fn step(name: &str, scores: &[(&str, f64)]) -> Step {
         effective_samples: 100.0,
         preference: super::super::evidence::preference(&ranked),
         validation: None,
+        spread: Vec::new(),
     }
 }
 

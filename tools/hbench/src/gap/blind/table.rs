@@ -107,11 +107,45 @@ pub fn table(cases: &[Case]) -> String {
     row(&mut md, "**all**", cases.iter().collect());
     md.push_str(&advice_line(cases));
     md.push_str(&revision_line(cases));
+    md.push_str(&spread_line(cases));
     md
 }
 
-/// The runs whose contested step was asked again at their end (`revision`), and what
-/// came of it (empty when none was).
+/// How far each fitted magnitude lies from the truth in its own standard errors
+/// (`fit::spread`): the spread covers the noise, not the bias a model-form error puts in
+/// a fit (empty when no case recorded one).
+fn spread_line(cases: &[Case]) -> String {
+    let off: Vec<(&Case, f64)> = cases
+        .iter()
+        .filter_map(|c| {
+            let (f, t, d) = (c.fitted?, c.truth?, c.fitted_std?);
+            (d > 0.0).then(|| (c, (f - t) / d))
+        })
+        .collect();
+    if off.is_empty() {
+        return String::new();
+    }
+    let within = off.iter().filter(|(_, z)| z.abs() <= 2.0).count();
+    let mut line = format!(
+        "\nThe truth within two standard errors of the fit: {within} of {} fitted.\n",
+        off.len()
+    );
+    for (c, z) in off {
+        let _ = writeln!(
+            line,
+            "- {}: {:.4e} +- {:.2e} against {:.4e} ({z:+.1} s.e.)",
+            label(c),
+            c.fitted.unwrap_or_default(),
+            c.fitted_std.unwrap_or_default(),
+            c.truth.unwrap_or_default()
+        );
+    }
+    line
+}
+
+/// The runs whose step was asked again at their end (`revision`: contested, or taken
+/// clearly by a run that ended far above the floor), and what came of it (empty when
+/// none was).
 fn revision_line(cases: &[Case]) -> String {
     let asked: Vec<(&Case, &serde_json::Value)> = cases
         .iter()
@@ -125,8 +159,8 @@ fn revision_line(cases: &[Case]) -> String {
         .filter(|(_, r)| r["revised"].as_bool() == Some(true))
         .count();
     let mut line = format!(
-        "\nAsked again at the end of the run (a contested step, with the later recalibrations \
-         re-fitted): {} runs, continued from the rival and kept in {kept}.\n",
+        "\nAsked again at the end of the run (a contested step, or any step when the run ended \
+         far above the noise floor, with the later recalibrations re-fitted): {} runs, continued from the rival and kept in {kept}.\n",
         asked.len()
     );
     let added = |p: &serde_json::Value| {
@@ -141,17 +175,17 @@ fn revision_line(cases: &[Case]) -> String {
         }
     };
     for (c, r) in asked {
-        let hidden = if c.hidden.is_empty() {
-            "none".to_string()
-        } else {
-            c.hidden.join("+")
-        };
         let _ = writeln!(
             line,
-            "- {hidden} ({}, {}): step {} between {}: {} (ln B {}); added {} -> {}{}",
-            c.experiment,
-            c.simulator,
+            "- {}: step {}{} between {}: {} (ln B {}); added {} -> {}{}",
+            label(c),
             r["step"].as_u64().map_or(0, |k| k + 1),
+            // studies before the reason was recorded asked contested steps only
+            if r["reason"].as_str().is_some_and(|w| w != "contested") {
+                " (taken clearly)"
+            } else {
+                ""
+            },
             r["between"]
                 .as_array()
                 .map(|a| a
@@ -218,10 +252,8 @@ fn advice_line(cases: &[Case]) -> String {
     for c in advised {
         let _ = writeln!(
             line,
-            "- {} ({}, {}): {}: afresh {}; between {}: {} (ln B expected {}, found {})",
-            c.hidden.join("+"),
-            c.experiment,
-            c.simulator,
+            "- {}: {}: afresh {}; between {}: {} (ln B expected {}, found {})",
+            label(c),
             c.advised.as_deref().unwrap_or("-"),
             c.named_after_advice
                 .as_ref()
@@ -250,4 +282,14 @@ pub fn write(out: &Path, cases: &[Case]) -> Result<String, String> {
     let json = serde_json::to_string_pretty(cases).map_err(|e| e.to_string())?;
     std::fs::write(out.join("blind.json"), json).map_err(|e| e.to_string())?;
     Ok(md)
+}
+
+/// A case as the lists name it: what was hidden (or none), the experiment and the bench.
+fn label(c: &Case) -> String {
+    let hidden = if c.hidden.is_empty() {
+        "none".to_string()
+    } else {
+        c.hidden.join("+")
+    };
+    format!("{hidden} ({}, {})", c.experiment, c.simulator)
 }
