@@ -205,6 +205,10 @@ enum Command {
         /// Seeds per effect and experiment
         #[arg(long, default_value_t = 2)]
         seeds: u64,
+        /// The first seed (seeds first-seed .. first-seed + seeds - 1): a study extended
+        /// with new seeds repeats none it has
+        #[arg(long, default_value_t = 1)]
+        first_seed: u64,
         /// Hide every pair of the effects at once instead of one at a time
         #[arg(long)]
         pairs: bool,
@@ -359,6 +363,7 @@ fn main() -> ExitCode {
             effects,
             experiments,
             seeds,
+            first_seed,
             pairs,
             joint,
             follow_advice,
@@ -376,7 +381,7 @@ fn main() -> ExitCode {
                 gap::blind::main(&gap::blind::Options {
                     effects: &effects,
                     kinds: &kinds,
-                    seeds,
+                    seeds: first_seed..first_seed + seeds,
                     pairs,
                     joint,
                     follow_advice,

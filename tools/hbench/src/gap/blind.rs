@@ -440,7 +440,8 @@ pub struct Options<'a> {
     /// plus `none` when the data carry a model-form error.
     pub effects: &'a [String],
     pub kinds: &'a [Kind],
-    pub seeds: u64,
+    /// The seeds of each effect and experiment.
+    pub seeds: std::ops::Range<u64>,
     pub pairs: bool,
     /// One case per effect and seed with every experiment's record analysed jointly,
     /// instead of one case per experiment.
@@ -504,7 +505,7 @@ pub fn main(o: &Options) -> Result<(), String> {
                 o.kinds.iter().map(|k| vec![*k]).collect()
             };
             for kinds in &groups {
-                for seed in 1..=o.seeds {
+                for seed in o.seeds.clone() {
                     jobs.push((sim, set.clone(), kinds.clone(), seed));
                 }
             }
