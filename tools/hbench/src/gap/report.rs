@@ -306,6 +306,15 @@ pub fn write(out: &Path, o: &Outcome) -> Result<(), String> {
          (estimated from the data): 1 is the noise floor.\n\n**Result:** gap {:.2} -> {:.2}: {}.\n",
         o.initial_gap, o.remaining_gap, o.verdict
     );
+    if o.steps.iter().any(|s| !s.spread.is_empty()) {
+        let _ = writeln!(
+            md,
+            "Each fitted parameter is given with its standard error (1 s.e.): how far the \
+             record's noise lets it move. It says nothing of the bias a model-form error puts \
+             into a fit: on blind records with form error the fits lay 1 to 174 standard \
+             errors from the truth (docs/gap.md).\n"
+        );
+    }
     for r in &o.records {
         let _ = writeln!(md, "## Where the model disagreed with `{}`\n", r.name);
         for s in describe(&r.first) {
