@@ -466,14 +466,8 @@ mod tests {
         let dir = std::env::temp_dir().join(format!("hb-decide-{}", std::process::id()));
         let out = dir.join("answer");
         std::fs::create_dir_all(&dir).expect("a temporary folder");
-        let (csv, toml, model) = (
-            dir.join("measured.csv"),
-            dir.join("experiment.toml"),
-            dir.join("fitted_model.toml"),
-        );
-        std::fs::write(&csv, r.measured.to_csv()).expect("written");
-        std::fs::write(&toml, r.experiment.to_toml()).expect("written");
-        std::fs::write(&model, s.known.to_toml()).expect("written");
+        let (csv, toml, model) =
+            crate::gap::tests::write_inputs(&dir, &r, &s.known, "fitted_model.toml");
         let between = ["valve_dynamics".to_string(), "sensor_delay".to_string()];
         let viscous = ["actuator.viscous_friction".to_string()];
         let run = |out: &Path, recalibrate: &[String]| {

@@ -172,7 +172,20 @@ struct Problem<'a> {
     r: DVector<f64>,
 }
 
-impl Problem<'_> {
+impl<'a> Problem<'a> {
+    /// The problem of fitting `own` and then `carried` parameters from `base`, not yet
+    /// at any point (`set_params`).
+    fn new(target: &'a Target<'a>, base: Params, own: &[Fitted], carried: &[Fitted]) -> Self {
+        let coords: Vec<Coordinate> = own.iter().chain(carried).map(Coordinate::new).collect();
+        Problem {
+            target,
+            base,
+            z: DVector::zeros(coords.len()),
+            r: DVector::zeros(0),
+            coords,
+        }
+    }
+
     fn params_at(&self, z: &DVector<f64>) -> Params {
         let mut p = self.base.clone();
         for (c, zi) in self.coords.iter().zip(z.iter()) {
@@ -278,19 +291,7 @@ pub fn fit(target: &Target, base: &Params, c: &Candidate, carried: &[Fitted]) ->
     for &e in c.switches_on {
         switch_on(&mut start, e);
     }
-    let coords: Vec<Coordinate> = c
-        .fitted
-        .iter()
-        .chain(carried)
-        .map(Coordinate::new)
-        .collect();
-    let mut problem = Problem {
-        target,
-        base: start,
-        z: DVector::zeros(coords.len()),
-        r: DVector::zeros(0),
-        coords,
-    };
+    let mut problem = Problem::new(target, start, &c.fitted, carried);
     // screen the first parameter over its plausible range, the others at their defaults
     let defaults: Vec<f64> = problem
         .coords
@@ -379,33 +380,28 @@ pub struct Correlation {
 /// far the data let a parameter move for the same fit, not how far a model-form error
 /// biases it.
 pub fn spread(target: &Target, fit: &Fit, tau: f64) -> Vec<Spread> {
-    let coords: Vec<Coordinate> = fit
-        .candidate
-        .fitted
-        .iter()
-        .chain(&fit.carried)
-        .map(Coordinate::new)
-        .collect();
+    let mut problem = Problem::new(
+        target,
+        fit.params.clone(),
+        &fit.candidate.fitted,
+        &fit.carried,
+    );
     let z = DVector::from_iterator(
-        coords.len(),
-        coords
+        problem.coords.len(),
+        problem
+            .coords
             .iter()
             .zip(&fit.values)
             .map(|(c, (_, v))| c.coordinate(*v)),
     );
-    let mut problem = Problem {
-        target,
-        base: fit.params.clone(),
-        z: DVector::zeros(coords.len()),
-        r: DVector::zeros(0),
-        coords,
-    };
     problem.set_params(&z);
     let cov = problem.jacobian().and_then(|j| {
         let scale = fit.gap * fit.gap * tau.max(1.0);
         (j.transpose() * &j).try_inverse().map(|inv| inv * scale)
     });
     let slope = |c: &Coordinate, z: f64| {
+        // a central difference of the logistic map, whose curvature scale in z is 1:
+        // 1e-4 leaves a truncation error near 1e-8 of the slope
         const H: f64 = 1e-4;
         (c.value(z + H) - c.value(z - H)) / (2.0 * H)
     };

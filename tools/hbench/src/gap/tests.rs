@@ -121,6 +121,25 @@ fn a_pressure_sensor_lag_is_no_sensor_delay() {
     assert!(added.is_empty(), "added {added:?}");
 }
 
+/// `r` written into `dir` as a user hands it to `hbench gap` (measured.csv,
+/// experiment.toml) with `model` as `model_name`; returns the three paths.
+pub(crate) fn write_inputs(
+    dir: &std::path::Path,
+    r: &Record,
+    model: &hbmodel::Params,
+    model_name: &str,
+) -> (std::path::PathBuf, std::path::PathBuf, std::path::PathBuf) {
+    let (csv, toml, file) = (
+        dir.join("measured.csv"),
+        dir.join("experiment.toml"),
+        dir.join(model_name),
+    );
+    std::fs::write(&csv, r.measured.to_csv()).expect("written");
+    std::fs::write(&toml, r.experiment.to_toml()).expect("written");
+    std::fs::write(&file, model.to_toml()).expect("written");
+    (csv, toml, file)
+}
+
 /// A report that asks no question leaves no question model behind: an earlier run's
 /// `question_model.toml` in the same folder would be taken for this report's.
 #[test]
@@ -130,14 +149,7 @@ fn an_earlier_runs_question_model_does_not_outlive_its_report() {
     let dir = std::env::temp_dir().join(format!("hb-stale-{}", std::process::id()));
     let out = dir.join("report");
     std::fs::create_dir_all(&out).expect("a temporary folder");
-    let (csv, toml, model) = (
-        dir.join("measured.csv"),
-        dir.join("experiment.toml"),
-        dir.join("known.toml"),
-    );
-    std::fs::write(&csv, r.measured.to_csv()).expect("written");
-    std::fs::write(&toml, r.experiment.to_toml()).expect("written");
-    std::fs::write(&model, s.known.to_toml()).expect("written");
+    let (csv, toml, model) = write_inputs(&dir, &r, &s.known, "known.toml");
     let question = out.join(super::advice::QUESTION_MODEL);
     std::fs::write(&question, "# an earlier run's question\n").expect("written");
     super::main(
