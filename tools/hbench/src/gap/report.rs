@@ -276,6 +276,10 @@ pub fn write(out: &Path, o: &Outcome) -> Result<(), String> {
         // for this one's (the file is among `outputs`, checked to be no input)
         std::fs::remove_file(&path)
             .map_err(|err| format!("cannot remove {}: {err}", path.display()))?;
+        println!(
+            "removed {}: an earlier run's question, and this report asks none",
+            path.display()
+        );
     }
 
     let mut md = String::from("# Model-gap report\n\n");
@@ -419,8 +423,12 @@ fn held_out(v: &super::holdout::Validation) -> String {
         .folds
         .iter()
         .map(|f| {
+            let on = f
+                .signals
+                .as_ref()
+                .map_or(String::new(), |s| format!(" on {s} alone"));
             format!(
-                "fitted without the {}, its gap went {:.2} -> {:.2}",
+                "fitted{on} without the {}, its gap went {:.2} -> {:.2}",
                 f.held_out, f.gap_before, f.gap_after
             )
         })
