@@ -50,9 +50,9 @@ impl Candidate {
         }
     }
 
-    /// The groups of signals the held-out check fits and judges each alone (`holdout`);
-    /// empty: all signals together. A delay of every sensor must show in the position and
-    /// in the pressures, each on its own. Judged on all signals together, a first-order
+    /// The groups of signals the held-out check also fits and judges each alone, besides
+    /// all signals together (`holdout`). A delay of every sensor must show in the
+    /// position and in the pressures, each on its own. Judged on all signals together, a first-order
     /// lag of the pressure transducers alone (outside the registry) paid a delay's price:
     /// Rust bench, steps, seed 2, form error with a 0.46 ms pressure lag and nothing
     /// hidden, `sensor_delay` was added at 0.1 ms with both held-out halves closer (gap
