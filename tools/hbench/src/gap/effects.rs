@@ -49,25 +49,6 @@ impl Candidate {
             _ => self.fitted.first().map_or("", |f| f.path).to_string(),
         }
     }
-
-    /// The groups of signals the held-out check also fits and judges each alone, besides
-    /// all signals together (`holdout`). A delay of every sensor must show in the
-    /// position and in the pressures, each on its own. Judged on all signals together, a first-order
-    /// lag of the pressure transducers alone (outside the registry) paid a delay's price:
-    /// Rust bench, steps, seed 2, form error with a 0.46 ms pressure lag and nothing
-    /// hidden, `sensor_delay` was added at 0.1 ms with both held-out halves closer (gap
-    /// 1.31 -> 1.28 and 1.30 -> 1.25). On that record's position alone the delay made
-    /// the gap worse (1.43 -> 1.72), while with a 306 us delay hidden the position alone
-    /// fitted 306.5 us (measured). Fitting on all signals and judging on the position
-    /// does not serve: there the lag pulls the hidden delay to 419 us, which fits the
-    /// position worse than no delay (held out 1.57 -> 1.72, measured). A lag of the LVDT
-    /// alone is the mirror case, refused by the pressures.
-    pub fn judged_apart(&self) -> &'static [&'static [&'static str]] {
-        match (self.kind, self.effect) {
-            (StepKind::Add, Some(Effect::SensorDelay)) => &[&["y"], &["P1", "P2"]],
-            _ => &[],
-        }
-    }
 }
 
 const fn lin(path: &'static str, plausible: [f64; 2]) -> Fitted {

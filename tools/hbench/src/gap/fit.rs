@@ -112,27 +112,6 @@ impl Target<'_> {
             .collect()
     }
 
-    /// The same records compared on `signals` only (records showing none of them are
-    /// dropped); None when no record shows any.
-    pub fn only(&self, signals: &[&str]) -> Option<Target<'_>> {
-        let records: Vec<_> = self
-            .records
-            .iter()
-            .map(|r| Record {
-                noise: r
-                    .noise
-                    .iter()
-                    .filter(|(name, _)| signals.contains(name))
-                    .copied()
-                    .collect(),
-                window: r.window.clone(),
-                ..*r
-            })
-            .filter(|r| !r.noise.is_empty())
-            .collect();
-        (!records.is_empty()).then_some(Target { records })
-    }
-
     /// RMS of the normalised residuals: 1 at the noise floor.
     pub fn gap(&self, p: &Params) -> f64 {
         self.residuals(p).map_or(f64::INFINITY, |r| {

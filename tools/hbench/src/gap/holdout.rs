@@ -12,7 +12,7 @@
 //! record is always simulated: the held-out half's states come from the model running
 //! through the fitted half.
 
-use std::cell::RefCell;
+use std::cell::OnceCell;
 
 use hbmodel::Params;
 use serde::Serialize;
@@ -25,10 +25,6 @@ use super::fit::{fit, Target};
 #[derive(Debug, Clone, Serialize)]
 pub struct Fold {
     pub held_out: String,
-    /// The signals fitted and compared when the candidate is judged on some apart
-    /// (`Candidate::judged_apart`); None: all of them.
-    #[serde(skip_serializing_if = "Option::is_none")]
-    pub signals: Option<String>,
     pub gap_before: f64,
     pub gap_after: f64,
 }
@@ -76,54 +72,34 @@ pub fn folds<'a>(
             })
             .collect();
     }
-    halves(target)
-}
-
-/// Two folds over the halves of every record at once: fitted on the first halves and
-/// judged on the second, and the other way round. Records too short to halve are left
-/// out; none left, no fold.
-pub fn halves<'a>(target: &'a Target<'a>) -> Vec<(String, Target<'a>, Target<'a>)> {
-    let split: Vec<_> = target
-        .records
-        .iter()
-        .filter_map(|r| {
-            let (start, end) = (r.window.start, r.window.end);
-            let middle = start + (end - start) / 2;
-            (middle - start >= MIN_HALF).then_some((r, start..middle, middle..end))
-        })
-        .collect();
-    if split.is_empty() {
+    let Some(r) = records.first() else {
+        return Vec::new();
+    };
+    let (start, end) = (r.window.start, r.window.end);
+    let middle = start + (end - start) / 2;
+    if middle - start < MIN_HALF {
         return Vec::new();
     }
-    let pick = |second: bool| Target {
-        records: split
-            .iter()
-            .map(|(r, first, rest)| r.part(if second { rest.clone() } else { first.clone() }))
-            .collect(),
+    let half = |w: std::ops::Range<usize>| Target {
+        records: vec![r.part(w)],
     };
-    let plural = if split.len() > 1 { "halves" } else { "half" };
     vec![
-        (format!("second {plural}"), pick(false), pick(true)),
-        (format!("first {plural}"), pick(true), pick(false)),
+        ("second half".into(), half(start..middle), half(middle..end)),
+        ("first half".into(), half(middle..end), half(start..middle)),
     ]
 }
 
 /// The held-out check of one round: the records (`target`, called `names`), the model
 /// before the step and the parameters carried with every fit. The model before the step
-/// is fitted on the folds once per group of signals, when a candidate judged on that
-/// group is first checked (`baseline`).
+/// is judged on the folds once, on the first candidate checked (`baseline`).
 pub struct Judge<'a> {
     target: &'a Target<'a>,
     names: &'a [String],
     model: &'a Params,
     carried: &'a [Fitted],
     progress: bool,
-    /// (signals, the model before the step on each of their folds); no signals: all.
-    before: RefCell<Vec<(Group, Vec<Params>)>>,
+    before: OnceCell<Vec<f64>>,
 }
-
-/// Signals judged together; None: all the records show.
-type Group = Option<&'static [&'static str]>;
 
 impl<'a> Judge<'a> {
     pub fn new(
@@ -139,103 +115,71 @@ impl<'a> Judge<'a> {
             model,
             carried,
             progress,
-            before: RefCell::new(Vec::new()),
+            before: OnceCell::new(),
         }
     }
 
-    /// The model before the step on each of `parts` (the folds of `group`), its carried
+    /// The held-out gap of each fold under the model before the step, its carried
     /// parameters re-fitted on the fold's fitted part: both sides of the comparison then
     /// know the same data (against the model as fitted on everything, whose
     /// recalibrations had seen the held-out part, a manifold inertia hidden on steps with
     /// form error was refused, measured). The folds run in parallel.
-    fn baseline(&self, group: Group, parts: &[(String, Target, Target)]) -> Vec<Params> {
-        if let Some((_, p)) = self.before.borrow().iter().find(|(g, _)| *g == group) {
-            return p.clone();
-        }
-        let bar = crate::parallel::bar(parts.len(), "held out, the model before", self.progress);
-        let refit = Candidate {
-            kind: StepKind::Recalibrate,
-            effect: None,
-            fitted: self.carried.to_vec(),
-            signature: "the model before the step",
-            switches_on: &[],
-        };
-        let p = crate::parallel::map(
-            parts,
-            &bar,
-            |(held_out, _, _)| held_out.clone(),
-            |(_, fitted, _)| {
-                if self.carried.is_empty() {
-                    self.model.clone()
-                } else {
-                    fit(fitted, self.model, &refit, &[]).params
-                }
-            },
-        );
-        self.before.borrow_mut().push((group, p.clone()));
-        p
+    pub fn baseline(&self) -> &[f64] {
+        self.before.get_or_init(|| {
+            let parts = folds(self.target, self.names);
+            let bar =
+                crate::parallel::bar(parts.len(), "held out, the model before", self.progress);
+            let refit = Candidate {
+                kind: StepKind::Recalibrate,
+                effect: None,
+                fitted: self.carried.to_vec(),
+                signature: "the model before the step",
+                switches_on: &[],
+            };
+            crate::parallel::map(
+                &parts,
+                &bar,
+                |(held_out, _, _)| held_out.clone(),
+                |(_, fitted, left_out)| {
+                    if self.carried.is_empty() {
+                        left_out.gap(self.model)
+                    } else {
+                        left_out.gap(&fit(fitted, self.model, &refit, &[]).params)
+                    }
+                },
+            )
+        })
     }
 
     /// Fit `c` on each fold's fitted part (with the carried parameters, as the step
     /// itself) and compare the held-out part's gap with the model before the step's
-    /// (`baseline`), fold by fold. A candidate judged on groups of signals apart
-    /// (`Candidate::judged_apart`) is, besides, fitted and judged on each group alone,
-    /// over the halves of every record (`halves`): each must show it. The folds run in
-    /// parallel.
+    /// (`baseline`), fold by fold. The folds run in parallel.
     pub fn validate(&self, c: &Candidate) -> Validation {
-        // all signals together, and each group the candidate is judged on apart
-        let groups: Vec<Group> = std::iter::once(None)
-            .chain(c.judged_apart().iter().map(|g| Some(*g)))
-            .collect();
-        let mut folds = Vec::new();
-        for group in groups {
-            let restricted;
-            let target = match group {
-                None => self.target,
-                Some(g) => match self.target.only(g) {
-                    Some(t) => {
-                        restricted = t;
-                        &restricted
-                    }
-                    // records without these signals cannot judge on them
-                    None => continue,
-                },
-            };
-            // one kind of sensor of a record left out may not be predicted by the other
-            // records' same sensors when they cannot pin the effect: fitted on the slow
-            // 7th-order moves' pressures alone, a delay took the steps' pressures from
-            // 7.35 to 9.48 noise levels, while their positions agreed (measured, test
-            // `two_records_fitted_jointly_do_as_well_as_each_alone`); a group is judged
-            // on the halves of every record at once
-            let parts = match group {
-                None => self::folds(target, self.names),
-                Some(_) => halves(target),
-            };
-            let before = self.baseline(group, &parts);
-            let bar = crate::parallel::bar(
-                parts.len(),
-                &format!("held out, {}", c.name()),
-                self.progress,
-            );
-            let after = crate::parallel::map(
-                &parts,
-                &bar,
-                |(held_out, _, _)| held_out.clone(),
-                |(_, fitted, _)| fit(fitted, self.model, c, self.carried).params,
-            );
-            for (((held_out, _, left_out), after), before) in parts.iter().zip(&after).zip(&before)
-            {
-                folds.push(Fold {
-                    held_out: held_out.clone(),
-                    signals: group.map(|g| g.join(", ")),
-                    gap_before: left_out.gap(before),
-                    gap_after: left_out.gap(after),
-                });
-            }
-        }
+        let before = self.baseline();
+        let parts = folds(self.target, self.names);
+        let bar = crate::parallel::bar(
+            parts.len(),
+            &format!("held out, {}", c.name()),
+            self.progress,
+        );
+        let after = crate::parallel::map(
+            &parts,
+            &bar,
+            |(held_out, _, _)| held_out.clone(),
+            |(_, fitted, left_out)| left_out.gap(&fit(fitted, self.model, c, self.carried).params),
+        );
         Validation {
             effect: c.name(),
-            folds,
+            folds: parts
+                .iter()
+                .zip(after)
+                .zip(before)
+                .map(|(((held_out, _, _), gap_after), &gap_before)| Fold {
+                    held_out: held_out.clone(),
+                    gap_before,
+                    gap_after,
+                })
+                .collect(),
         }
     }
 }
@@ -325,99 +269,10 @@ mod tests {
         let names = ["delayed".to_string(), "plain".to_string()];
         let v = Judge::new(&target, &names, known, &[], false).validate(&delay);
         assert!(!v.passed(), "{v:?}");
-        let plain: Vec<_> = v
-            .folds
-            .iter()
-            .filter(|f| f.held_out == "record `plain`")
-            .collect();
+        let plain = &v.folds[1];
         assert!(
-            !plain.is_empty() && plain.iter().all(|f| f.gap_after > f.gap_before),
+            plain.gap_after > plain.gap_before,
             "fitted on the delayed record, the delay must worsen the other: {v:?}"
         );
-    }
-
-    /// A delay of every sensor is judged on the position and on the pressures apart.
-    /// - Rust bench, steps, seed 2's form error (a 0.46 ms pressure-sensor lag among
-    ///   parameters a few percent off), with the four recalibrations its run had carried
-    ///   re-fitted on each fold: fitted on the position alone, the delay leaves the
-    ///   held-out position further (the pressures alone would take it); fitted and judged
-    ///   on all signals together, it passes.
-    /// - The mirror case, a 0.46 ms LVDT lag alone: refused by the pressures.
-    /// - A 0.3 ms delay hidden beside the pressure lag: passes.
-    #[test]
-    fn a_sensor_delay_must_show_in_the_position_and_in_the_pressures() {
-        use crate::gap::hide::Truth;
-        use crate::gap::recalibrate;
-        use crate::gap::variants::{section_4_4, FormError};
-        let delay = candidate(Effect::SensorDelay).expect("a candidate");
-        let names = ["steps".to_string()];
-        let judge = |s: &Setup, carried: &[Fitted]| {
-            let (e, m) = record(s, Kind::Steps, 2);
-            let target = Target {
-                records: vec![Record::new(&m, &e, noise_levels(&m))],
-            };
-            let v = Judge::new(&target, &names, &s.known, carried, false).validate(&delay);
-            assert_eq!(
-                v.folds.len(),
-                6,
-                "two halves, all signals and two groups: {v:?}"
-            );
-            v
-        };
-        let worse_on = |v: &Validation, signals: &str| {
-            v.folds
-                .iter()
-                .filter(|f| f.signals.as_deref() == Some(signals))
-                .all(|f| f.gap_after > f.gap_before)
-        };
-
-        let seed_2 = Setup::new(Simulator::Rust, true, &[], 2);
-        let run = [
-            "fluid.bulk_modulus",
-            "actuator.mass",
-            "actuator.viscous_friction",
-            "sv1.rated_flow",
-        ];
-        let carried: Vec<Fitted> = recalibrate::candidates(&seed_2.known, 0.15, &[])
-            .into_iter()
-            .flat_map(|c| c.fitted)
-            .filter(|f| run.contains(&f.path))
-            .collect();
-        assert_eq!(carried.len(), run.len());
-        let v = judge(&seed_2, &carried);
-        assert!(!v.passed() && worse_on(&v, "y"), "{v:?}");
-        // the same delay fitted and judged on all signals together
-        let together = Candidate {
-            kind: StepKind::Recalibrate,
-            ..delay.clone()
-        };
-        assert!(together.judged_apart().is_empty());
-        let (e, m) = record(&seed_2, Kind::Steps, 2);
-        let target = Target {
-            records: vec![Record::new(&m, &e, noise_levels(&m))],
-        };
-        let v = Judge::new(&target, &names, &seed_2.known, &carried, false).validate(&together);
-        assert!(v.passed(), "all signals together, the delay passes: {v:?}");
-
-        let known = section_4_4();
-        let with_lag = |lvdt_lag: f64, pressure_lag: f64, hidden: &[(&'static str, f64)]| {
-            let form = FormError {
-                lvdt_lag,
-                pressure_lag,
-                ..FormError::none()
-            };
-            let effects: Vec<Effect> = hidden.iter().map(|_| Effect::SensorDelay).collect();
-            let bench = Truth::new(Simulator::Rust, &known, &effects, hidden, &form);
-            Setup {
-                known: known.clone(),
-                drawn: hidden.to_vec(),
-                without: bench.clone(),
-                bench,
-            }
-        };
-        let v = judge(&with_lag(0.46e-3, 0.0, &[]), &[]);
-        assert!(!v.passed() && worse_on(&v, "P1, P2"), "LVDT lag: {v:?}");
-        let v = judge(&with_lag(0.0, 0.46e-3, &[("sensors.delay", 0.3e-3)]), &[]);
-        assert!(v.passed(), "a delay beside a pressure lag: {v:?}");
     }
 }

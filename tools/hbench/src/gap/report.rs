@@ -423,12 +423,8 @@ fn held_out(v: &super::holdout::Validation) -> String {
         .folds
         .iter()
         .map(|f| {
-            let on = f
-                .signals
-                .as_ref()
-                .map_or(String::new(), |s| format!(" on {s} alone"));
             format!(
-                "fitted{on} without the {}, its gap went {:.2} -> {:.2}",
+                "fitted without the {}, its gap went {:.2} -> {:.2}",
                 f.held_out, f.gap_before, f.gap_after
             )
         })
