@@ -157,15 +157,10 @@ impl DenseLu {
                 }
             }
         }
-        self.gather_nonzeros();
-        true
-    }
-
-    /// The factors' nonzeros off the diagonal, for `solve`.
-    fn gather_nonzeros(&mut self) {
-        let n = self.n;
+        // the factors' nonzeros off the diagonal, for `solve`
         self.lower.gather(&self.a, n, |i| 0..i);
         self.upper.gather(&self.a, n, |i| i + 1..n);
+        true
     }
 
     /// Solve A x = b in place (b becomes x).
