@@ -76,6 +76,17 @@ fn recalibrations(model: &Params, within: f64) -> Vec<Candidate> {
     recalibrate::candidates(model, within, &[])
 }
 
+/// The parameters a recalibration from `model` re-fits on its own, without switching an
+/// effect on (SV2's own flow makes it its own valve): what a question may re-fit beside
+/// its candidates.
+pub fn single_recalibrations(model: &Params, within: f64) -> Vec<&'static str> {
+    recalibrations(model, within)
+        .iter()
+        .filter(|c| c.switches_on.is_empty())
+        .flat_map(|c| c.fitted.iter().map(|f| f.path))
+        .collect()
+}
+
 /// Of the registry parameters `paths`, those a recalibration from `model` re-fits and no
 /// candidate of the question (`between`) fits: a recalibration asked about is judged, not
 /// given to every side beforehand.
