@@ -514,6 +514,8 @@ pub fn main(o: &Options) -> Result<(), String> {
     let out = o.out;
     let bar = crate::parallel::bar(jobs.len(), "blind study", true);
     let mut cases = Vec::new();
+    let asked = jobs.len();
+    let mut failed = Vec::new();
     for (sim, set, kinds, seed) in jobs {
         let label = format!(
             "{} {} {} #{seed}",
@@ -524,7 +526,12 @@ pub fn main(o: &Options) -> Result<(), String> {
         bar.set_message(label.clone());
         match case_advised(sim, form_error, &set, &kinds, seed, o.follow_advice) {
             Ok(c) => cases.push(c),
-            Err(e) => bar.println(format!("{label}: {e}")),
+            // on stderr whether or not the bar is shown: a hidden bar's println prints
+            // nothing, and a peer study without numpy once ended with 0 cases, silently
+            Err(e) => {
+                bar.suspend(|| eprintln!("{label}: {e}"));
+                failed.push(label);
+            }
         }
         // written after every case: a long study can be read while it runs
         write(out, &cases)?;
@@ -534,7 +541,15 @@ pub fn main(o: &Options) -> Result<(), String> {
     let md = write(out, &cases)?;
     println!("{md}");
     println!("wrote {0}/blind.md and {0}/blind.json", out.display());
-    Ok(())
+    if failed.is_empty() {
+        Ok(())
+    } else {
+        Err(format!(
+            "{} of {asked} cases failed (each error above): {}",
+            failed.len(),
+            failed.join(", ")
+        ))
+    }
 }
 
 #[cfg(test)]

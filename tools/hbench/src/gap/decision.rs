@@ -138,6 +138,7 @@ fn refitted(
 }
 
 /// A question asked on a fitting target: the decision, and what it was made from.
+#[derive(Clone)]
 pub struct Asked {
     pub decision: Decision,
     /// The question's model with the recalibrations asked for re-fitted (None when none
