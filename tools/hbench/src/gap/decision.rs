@@ -153,6 +153,14 @@ pub struct Asked {
 }
 
 impl Asked {
+    /// The least chi-square among the candidates' fits.
+    pub fn best_chi2(&self) -> f64 {
+        self.fits
+            .iter()
+            .map(|f| f.chi2)
+            .fold(f64::INFINITY, f64::min)
+    }
+
     /// The model the decision leaves: the winner's, or the re-fitted question's model.
     pub fn decided(&self, question: &Params) -> Params {
         match (self.won, &self.baseline) {

@@ -17,10 +17,10 @@
 //! the model as it stands among them) and passes the held-out check, the run is
 //! continued from that step with the rival; the continued run is kept when the
 //! information criterion prefers its end to the original's (`evidence::score` between
-//! the two final residuals, each parameter of the difference paying its price). A run
-//! that ended far above the floor asks again with one more recalibration beside the
-//! candidates when that pays its price (`widened`). Whatever
-//! the answer, the report says so.
+//! the two final residuals, each parameter of the difference paying its price). When
+//! that question leaves a run that ended far above the floor standing, it is asked with
+//! one more recalibration beside the candidates, if that pays its price (`widened`).
+//! Whatever the answer, the report says so.
 
 use serde::Serialize;
 
@@ -316,9 +316,8 @@ fn widened(
     if clear(&asked) {
         return (recalibrate, asked);
     }
-    let best_chi2 = |a: &Asked| a.fits.iter().map(|f| f.chi2).fold(f64::INFINITY, f64::min);
     let effective = asked.decision.effective_samples;
-    let plain = best_chi2(&asked);
+    let plain = asked.best_chi2();
     let extra: Vec<&str> = decision::single_recalibrations(from, within);
     let extra: Vec<String> = decision::open(from, within, &extra, between)
         .into_iter()
@@ -328,7 +327,7 @@ fn widened(
     for p in extra {
         let set: Vec<String> = recalibrate.iter().cloned().chain([p]).collect();
         let Some(a) = ask(&set) else { continue };
-        let score = evidence::score(plain, best_chi2(&a), effective, 1.0);
+        let score = evidence::score(plain, a.best_chi2(), effective, 1.0);
         if score > best.0 {
             best = (score, set, a);
         }

@@ -177,8 +177,7 @@ fn a_question_is_widened_only_by_a_recalibration_that_pays_its_price() {
     let between = ["valve_dynamics".to_string(), "sensor_delay".to_string()];
     let plain = decision::ask(&s.known, &between, &[], &target, &names, 0.15, false)
         .expect("the plain question");
-    let best = |a: &Asked| a.fits.iter().map(|f| f.chi2).fold(f64::INFINITY, f64::min);
-    let chi2 = best(&plain);
+    let chi2 = plain.best_chi2();
     let effective = plain.decision.effective_samples;
     let singles = decision::single_recalibrations(&s.known, 0.15);
     let open = decision::open(&s.known, 0.15, &singles, &between);
@@ -208,37 +207,30 @@ fn a_question_is_widened_only_by_a_recalibration_that_pays_its_price() {
         }
     };
 
-    // with `pays` gaining, its set is kept; without, half the price does not pay
-    for (gains, kept, factor) in [(true, Some(pays), 0.5), (false, None, 1.0)] {
+    // with `pays` gaining, its set is kept; without, half the price does not pay; a plain
+    // question that already clears the rival is not widened (nothing asked)
+    let widening = open.len() - 1;
+    for (gains, cleared, kept, factor, calls_made) in [
+        (true, false, Some(pays), 0.5, widening),
+        (false, false, None, 1.0, widening),
+        (true, true, None, 1.0, 0),
+    ] {
         let ask = fake(gains);
         let (set, a) = widened(
             &s.known,
             &between,
             (vec![held.clone()], plain.clone()),
             0.15,
-            &|_| false,
+            &|_| cleared,
             &ask,
         );
         let expected: Vec<String> = [held].into_iter().chain(kept).cloned().collect();
-        assert_eq!(set, expected, "gains: {gains}");
-        assert!((best(&a) / chi2 - factor).abs() < 1e-12);
+        assert_eq!(set, expected, "gains: {gains}, cleared: {cleared}");
+        assert!((a.best_chi2() / chi2 - factor).abs() < 1e-12);
         let calls = asked.take();
-        assert_eq!(calls.len(), open.len() - 1, "{calls:?}");
+        assert_eq!(calls.len(), calls_made, "{calls:?}");
         assert!(calls
             .iter()
             .all(|c| c[0] == *held && c.len() == 2 && c[1] != *held));
     }
-
-    // a plain question that already clears the rival is not widened
-    let ask = fake(true);
-    let (set, _) = widened(
-        &s.known,
-        &between,
-        (vec![held.clone()], plain.clone()),
-        0.15,
-        &|_| true,
-        &ask,
-    );
-    assert_eq!(set, std::slice::from_ref(held));
-    assert!(asked.take().is_empty());
 }
