@@ -257,8 +257,9 @@ pub fn ask(
         .map(|f| Scored::of(f, chi2, effective))
         .collect();
     let preference = evidence::preference(
-        &Scored::contenders(&scored)
-            .into_iter()
+        &scored
+            .iter()
+            .map(|s| (s.effect.clone(), s.score))
             .chain(std::iter::once((AS_IS.to_string(), 0.0)))
             .collect::<Vec<_>>(),
     );

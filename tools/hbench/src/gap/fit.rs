@@ -371,37 +371,6 @@ pub fn fit(target: &Target, base: &Params, c: &Candidate, carried: &[Fitted]) ->
     }
 }
 
-/// How close to a bound of its fit a parameter may end and still count as inside it, as
-/// a fraction of the span of its bounded coordinate (the logistic's value, on a log
-/// scale for the log parameters). The optimiser's coordinate reaches 1e-6 of the span
-/// (`Coordinate::coordinate`); a fit the bound stopped sits within 1e-4 of it (the bulk
-/// modulus at exactly its -15 %, measured), one the data stopped far inside.
-const ON_BOUND: f64 = 1e-3;
-
-impl Fit {
-    /// The first fitted parameter, the candidate's own then the carried ones, that ended
-    /// on a bound of its fit, with its value. Such a fit is no model the data support: the
-    /// bound stopped it, and past it the candidate's parameter (or a recalibration more
-    /// than a few percent off, or an effect below its physical floor) would fit better.
-    /// With the pressure sensors lagging 0.46 ms (Rust bench, steps, seed 2, nothing
-    /// hidden) the bulk modulus and the moving mass went to their -15 % to take up the
-    /// lag, and a `sensor_delay` at its 0.1 ms floor and `entrained_air` beside them were
-    /// added (gap 1.25); the bulk modulus is 3.3 % off there, the mass 0.4 %.
-    pub fn on_bound(&self) -> Option<(&'static str, f64)> {
-        self.candidate
-            .fitted
-            .iter()
-            .chain(&self.carried)
-            .zip(&self.values)
-            .find_map(|(f, &(path, v))| {
-                let c = Coordinate::new(f);
-                let (a, b, w) = c.scale(v);
-                let s = (w - a) / (b - a);
-                (!(ON_BOUND..=1.0 - ON_BOUND).contains(&s)).then_some((path, v))
-            })
-    }
-}
-
 /// How well the record pins one fitted parameter: its standard error and the other
 /// fitted parameter it is most correlated with.
 #[derive(Debug, Clone, serde::Serialize)]
@@ -561,41 +530,5 @@ mod tests {
         assert!(r < -0.7, "{sp:?}");
         assert_eq!(sp[1].most_correlated.map(|m| m.r), Some(r), "symmetric");
         assert!(sp.iter().all(|x| x.std.is_some_and(|d| d > 0.0)), "{sp:?}");
-    }
-
-    /// A fit stopped by a bound, of its own parameter or of one carried with it, is told;
-    /// one inside its bounds is not.
-    #[test]
-    fn a_fit_that_ended_on_a_bound_is_told() {
-        use crate::gap::effects::candidate;
-        let c = candidate(Effect::SensorDelay).expect("a candidate");
-        let [floor, _] = c.fitted[0].bounds.expect("a floor");
-        let bulk = Fitted {
-            path: "fluid.bulk_modulus",
-            plausible: [1.445e9, 1.955e9],
-            log: false,
-            either_sign: false,
-            bounds: Some([1.445e9, 1.955e9]),
-        };
-        let fit_at = |delay: f64, modulus: f64| Fit {
-            candidate: c.clone(),
-            carried: vec![bulk],
-            name: c.name(),
-            params: Params::default(),
-            values: vec![("sensors.delay", delay), ("fluid.bulk_modulus", modulus)],
-            chi2: 1.0,
-            gap: 1.0,
-        };
-        assert_eq!(fit_at(0.4e-3, 1.6e9).on_bound(), None);
-        assert_eq!(
-            fit_at(floor, 1.6e9).on_bound(),
-            Some(("sensors.delay", floor))
-        );
-        assert_eq!(
-            fit_at(0.4e-3, 1.445e9).on_bound(),
-            Some(("fluid.bulk_modulus", 1.445e9))
-        );
-        // 1 % of the span inside the bound is inside
-        assert_eq!(fit_at(0.4e-3, 1.445e9 + 0.01 * 0.51e9).on_bound(), None);
     }
 }

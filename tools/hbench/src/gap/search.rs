@@ -257,7 +257,12 @@ pub fn step_of(
             .collect(),
         _ => Vec::new(),
     };
-    let preference = evidence::preference(&Scored::contenders(&candidates));
+    let preference = evidence::preference(
+        &candidates
+            .iter()
+            .map(|s| (s.effect.clone(), s.score))
+            .collect::<Vec<_>>(),
+    );
     Step {
         kind: winner.candidate.kind,
         effect: winner.candidate.effect.map(|e| e.name().to_string()),
