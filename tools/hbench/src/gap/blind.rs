@@ -70,6 +70,9 @@ pub struct Case {
     pub advised: Option<String>,
     #[serde(default)]
     pub named_after_advice: Option<Vec<String>>,
+    /// The first hidden effect's first parameter as that record's analysis fitted it.
+    #[serde(default)]
+    pub fitted_after_advice: Option<f64>,
     /// What the question, decided on the advised record, named (`decision::decide`).
     #[serde(default)]
     pub decided: Option<String>,
@@ -263,6 +266,32 @@ fn named(outcome: &super::Outcome, base: &Params, hidden: &[Effect]) -> Vec<Stri
         .collect()
 }
 
+/// The first hidden effect's parameter `path` and its standard error as `outcome` fitted
+/// it: added, or recalibrated when the effect was on already.
+fn fitted_of(
+    outcome: &super::Outcome,
+    base: &Params,
+    hidden: &[Effect],
+    path: &str,
+) -> (Option<f64>, Option<f64>) {
+    let first = hidden.first();
+    outcome
+        .steps
+        .iter()
+        .filter(|s| match s.kind {
+            StepKind::Add => first.is_some_and(|h| s.name == h.name()),
+            StepKind::Recalibrate => {
+                first.is_some_and(|h| base.has(*h) && s.effect.as_deref() == Some(h.name()))
+            }
+        })
+        .find_map(|s| {
+            let v = s.parameters.get(path)?.as_f64()?;
+            let std = s.spread.iter().find(|x| x.path == path).and_then(|x| x.std);
+            Some((v, std))
+        })
+        .map_or((None, None), |(v, d)| (Some(v), d))
+}
+
 /// `case_with`, and with `follow` the experiment advice put to the test (issue 14 item
 /// 6): when the hidden effect was not named first, the bench is recorded again under the
 /// design the workflow recommended (new noise); that record alone is analysed afresh, and
@@ -306,22 +335,7 @@ pub fn case_advised(
         Some((p, v)) => (*p, Some(*v)),
         None => ("", None),
     };
-    // the hidden effect's parameter as added, or as recalibrated when it was on already
-    let fitted = outcome
-        .steps
-        .iter()
-        .filter(|s| match s.kind {
-            StepKind::Add => hidden.first().is_some_and(|h| s.name == h.name()),
-            StepKind::Recalibrate => hidden
-                .first()
-                .is_some_and(|h| base.has(*h) && s.effect.as_deref() == Some(h.name())),
-        })
-        .find_map(|s| {
-            let v = s.parameters.get(path)?.as_f64()?;
-            let std = s.spread.iter().find(|x| x.path == path).and_then(|x| x.std);
-            Some((v, std))
-        });
-    let (fitted, fitted_std) = fitted.map_or((None, None), |(v, d)| (Some(v), d));
+    let (fitted, fitted_std) = fitted_of(&outcome, base, hidden, path);
     // an effect that needs others brings them along: they are hidden too
     let mut all_hidden: Vec<Effect> = Vec::new();
     for e in hidden {
@@ -359,6 +373,7 @@ pub fn case_advised(
         form: form_error.then(|| s.bench.form.to_json()),
         advised: None,
         named_after_advice: None,
+        fitted_after_advice: None,
         decided: None,
         advice_between: Vec::new(),
         expected_ln_bayes: None,
@@ -398,6 +413,7 @@ pub fn case_advised(
             },
         )?;
         case.named_after_advice = Some(named(&again, base, hidden));
+        case.fitted_after_advice = fitted_of(&again, base, hidden, path).0;
         // and the question asked, answered on it (`decision`)
         let (decision, _) = super::decision::decide(
             &advice.from,

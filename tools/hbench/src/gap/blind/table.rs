@@ -252,7 +252,7 @@ fn advice_line(cases: &[Case]) -> String {
     for c in advised {
         let _ = writeln!(
             line,
-            "- {}: {}: afresh {}; between {}: {} (ln B expected {}, found {})",
+            "- {}: {}: afresh {}{}; between {}: {} (ln B expected {}, found {})",
             label(c),
             c.advised.as_deref().unwrap_or("-"),
             c.named_after_advice
@@ -262,6 +262,11 @@ fn advice_line(cases: &[Case]) -> String {
                 } else {
                     n.join(", ")
                 }),
+            match (c.fitted_after_advice, c.truth) {
+                (Some(f), Some(t)) =>
+                    format!(" (fitted {:+.1} % off the truth)", 100.0 * (f / t - 1.0)),
+                _ => String::new(),
+            },
             if c.advice_between.is_empty() {
                 "-".into()
             } else {

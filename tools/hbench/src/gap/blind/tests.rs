@@ -33,6 +33,9 @@ fn check(c: &Case) {
 fn every_hidden_effect_is_named_first_and_fitted() {
     let mut cases = Vec::new();
     for e in super::super::effects::all().iter().filter_map(|c| c.effect) {
+        if e == Effect::EntrainedAir {
+            continue; // `air_on_steps_is_told_from_a_softer_oil_by_the_advised_record`
+        }
         cases.push(case(&[e], ci_experiment(e), 1).unwrap());
     }
     for c in &cases {
@@ -68,6 +71,45 @@ fn every_hidden_effect_is_named_first_and_fitted() {
         (0.1..3.0).contains(&mean_square),
         "spreads not calibrated: {z:?}"
     );
+}
+
+/// Entrained air hidden in the steps (1.94 %) softens the oil at the pressures the
+/// steps visit almost as a 3 % lower bulk modulus does: measured on seed 1, gap 0.920 with
+/// the bulk modulus recalibrated against 0.921 with the air, ln B 1.4, and the run takes
+/// neither as named. The workflow must then say so and recommend an experiment that
+/// tells them apart (issue 14 item 6), and a record of that experiment must name the air
+/// and fit it (measured: a +-3.4 mm sweep in mode 3, which names the air).
+#[test]
+fn air_on_steps_is_told_from_a_softer_oil_by_the_advised_record() {
+    let c = case_advised(
+        Simulator::Rust,
+        false,
+        &[Effect::EntrainedAir],
+        &[Kind::Steps],
+        1,
+        true,
+    )
+    .unwrap();
+    if c.first_correct() {
+        // named on the steps already: then it must be fitted as the others are
+        check(&c);
+        assert!(c.magnitude_error().is_some_and(|e| e <= 0.2), "{c:?}");
+        return;
+    }
+    assert!(c.named.is_empty(), "nothing else is named instead: {c:?}");
+    assert!(
+        c.advice_between.iter().any(|b| b == "entrained_air"),
+        "the question holds the air: {c:?}"
+    );
+    let after = c.named_after_advice.as_ref().expect("an advised record");
+    assert_eq!(
+        after.first().map(String::as_str),
+        Some("entrained_air"),
+        "{c:?}"
+    );
+    assert_eq!(c.decided.as_deref(), Some("entrained_air"), "{c:?}");
+    let (f, t) = (c.fitted_after_advice.expect("fitted"), c.truth.unwrap());
+    assert!((f / t - 1.0).abs() <= 0.2, "fitted {f} against {t}");
 }
 
 #[test]
