@@ -131,7 +131,8 @@ pub fn needed(steps: &[Step], gap: f64) -> bool {
 }
 
 /// The model as it stands and the best-scoring candidates of the last round (`round`:
-/// score and fit), leaving out `accepted`, the one the model already is.
+/// score and fit), leaving out `accepted`, the one the model already is, and fits that
+/// ended on a bound (no model the data support).
 pub fn leading(
     model: &Params,
     round: &[(f64, Fit)],
@@ -139,7 +140,9 @@ pub fn leading(
 ) -> Vec<(String, Params)> {
     let mut ranked: Vec<&(f64, Fit)> = round
         .iter()
-        .filter(|(s, f)| s.is_finite() && Some(f.name.as_str()) != accepted)
+        .filter(|(s, f)| {
+            s.is_finite() && f.on_bound().is_none() && Some(f.name.as_str()) != accepted
+        })
         .collect();
     ranked.sort_by(|a, b| b.0.total_cmp(&a.0));
     std::iter::once((AS_IS.to_string(), model.clone()))

@@ -257,9 +257,8 @@ pub fn ask(
         .map(|f| Scored::of(f, chi2, effective))
         .collect();
     let preference = evidence::preference(
-        &scored
-            .iter()
-            .map(|s| (s.effect.clone(), s.score))
+        &Scored::contenders(&scored)
+            .into_iter()
             .chain(std::iter::once((AS_IS.to_string(), 0.0)))
             .collect::<Vec<_>>(),
     );

@@ -390,6 +390,44 @@ pub fn fit(target: &Target, base: &Params, c: &Candidate, carried: &[Fitted]) ->
     }
 }
 
+/// How close to a bound of its fit a parameter may end and still count as inside it, as
+/// a fraction of the span of its bounded coordinate (the logistic's value, on a log
+/// scale for the log parameters). The optimiser's coordinate reaches 1e-6 of the span
+/// (`Coordinate::coordinate`); a fit the bound stopped sits within 1e-4 of it (the bulk
+/// modulus at exactly its -15 %, measured), one the data stopped far inside.
+const ON_BOUND: f64 = 1e-3;
+
+impl Fit {
+    /// The first fitted parameter, the candidate's own then the carried ones, that ended
+    /// on a bound of its fit, with its value. Such a fit is no model the data support: the
+    /// bound stopped it, and past it the candidate's parameter (or a recalibration more
+    /// than a few percent off, or an effect below its physical floor) would fit better.
+    /// With the pressure sensors lagging 0.46 ms (Rust bench, steps, seed 2, nothing
+    /// hidden) the bulk modulus and the moving mass went to their -15 % to take up the
+    /// lag, and a `sensor_delay` at its 0.1 ms floor and `entrained_air` beside them were
+    /// added (gap 1.25); the bulk modulus is 3.3 % off there, the mass 0.4 %.
+    ///
+    /// Only bounds narrower than the registry's physical ones count (`Fitted::bounds`: a
+    /// recalibration's few percent, the sensor delay's and payload's floors). A physical
+    /// bound often means "none" (no loss in the passages, no air): a fit there adds
+    /// nothing, is not taken anyway, and is a fair rival; counted, it slowed CI's
+    /// chapter-4 story past 15 minutes (session 15).
+    pub fn on_bound(&self) -> Option<(&'static str, f64)> {
+        self.candidate
+            .fitted
+            .iter()
+            .chain(&self.carried)
+            .zip(&self.values)
+            .filter(|(f, _)| f.bounds.is_some())
+            .find_map(|(f, &(path, v))| {
+                let c = Coordinate::new(f);
+                let (a, b, w) = c.scale(v);
+                let s = (w - a) / (b - a);
+                (!(ON_BOUND..=1.0 - ON_BOUND).contains(&s)).then_some((path, v))
+            })
+    }
+}
+
 /// How well the record pins one fitted parameter: its standard error and the other
 /// fitted parameter it is most correlated with.
 #[derive(Debug, Clone, serde::Serialize)]

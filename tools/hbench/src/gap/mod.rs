@@ -94,6 +94,9 @@ pub struct Scored {
     pub gap: f64,
     pub score: f64,
     pub parameters: serde_json::Map<String, serde_json::Value>,
+    /// A fitted parameter that ended on a bound of its fit, with its value.
+    #[serde(skip_serializing_if = "Option::is_none")]
+    pub on_bound: Option<(&'static str, f64)>,
 }
 
 impl Scored {
@@ -105,12 +108,23 @@ impl Scored {
             gap: f.gap,
             score: evidence::score(chi2, f.chi2, effective, f.values.len() as f64),
             parameters: json_values(&f.values),
+            on_bound: f.on_bound(),
         }
+    }
+
+    /// (name, score) of the candidates a preference is read between: a fit that ended on
+    /// a bound is no model the data support, so it is nobody's rival.
+    fn contenders(scored: &[Scored]) -> Vec<(String, f64)> {
+        scored
+            .iter()
+            .filter(|s| s.on_bound.is_none())
+            .map(|s| (s.effect.clone(), s.score))
+            .collect()
     }
 
     /// It pays its price and lowers the gap `before` by more than MIN_IMPROVEMENT.
     fn worth_adding(&self, before: f64) -> bool {
-        self.score > 0.0 && self.gap < (1.0 - MIN_IMPROVEMENT) * before
+        self.score > 0.0 && self.gap < (1.0 - MIN_IMPROVEMENT) * before && self.on_bound.is_none()
     }
 }
 

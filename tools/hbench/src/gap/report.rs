@@ -379,10 +379,13 @@ pub fn write(out: &Path, o: &Outcome) -> Result<(), String> {
         for s in c {
             let _ = writeln!(
                 md,
-                "| {} | {:.2} | {:.0} | {} |",
+                "| {} | {:.2} | {:.0}{} | {} |",
                 s.effect,
                 s.gap,
                 s.score,
+                s.on_bound
+                    .map(|(p, v)| format!(" (not taken: {p} = {v} on a bound of its fit)"))
+                    .unwrap_or_default(),
                 s.parameters
                     .iter()
                     .map(|(k, v)| format!("{k} = {v}"))

@@ -257,12 +257,7 @@ pub fn step_of(
             .collect(),
         _ => Vec::new(),
     };
-    let preference = evidence::preference(
-        &candidates
-            .iter()
-            .map(|s| (s.effect.clone(), s.score))
-            .collect::<Vec<_>>(),
-    );
+    let preference = evidence::preference(&Scored::contenders(&candidates));
     Step {
         kind: winner.candidate.kind,
         effect: winner.candidate.effect.map(|e| e.name().to_string()),

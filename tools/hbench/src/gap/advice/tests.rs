@@ -135,6 +135,7 @@ fn scored(effect: &str, score: f64) -> Scored {
         gap: 1.0,
         score,
         parameters: Default::default(),
+        on_bound: None,
     }
 }
 

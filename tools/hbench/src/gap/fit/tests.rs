@@ -72,6 +72,56 @@ fn the_spread_pins_a_delay_and_finds_dry_and_viscous_friction_traded_on_steps() 
     assert!(sp.iter().all(|x| x.std.is_some_and(|d| d > 0.0)), "{sp:?}");
 }
 
+/// A fit stopped by a bound, of its own parameter or of one carried with it, is told;
+/// one inside its bounds is not.
+#[test]
+fn a_fit_that_ended_on_a_bound_is_told() {
+    use crate::gap::effects::candidate;
+    let c = candidate(Effect::SensorDelay).expect("a candidate");
+    let [floor, _] = c.fitted[0].bounds.expect("a floor");
+    let bulk = Fitted {
+        path: "fluid.bulk_modulus",
+        plausible: [1.445e9, 1.955e9],
+        log: false,
+        either_sign: false,
+        bounds: Some([1.445e9, 1.955e9]),
+    };
+    let fit_at = |delay: f64, modulus: f64| Fit {
+        candidate: c.clone(),
+        carried: vec![bulk],
+        name: c.name(),
+        params: Params::default(),
+        values: vec![("sensors.delay", delay), ("fluid.bulk_modulus", modulus)],
+        chi2: 1.0,
+        gap: 1.0,
+    };
+    assert_eq!(fit_at(0.4e-3, 1.6e9).on_bound(), None);
+    assert_eq!(
+        fit_at(floor, 1.6e9).on_bound(),
+        Some(("sensors.delay", floor))
+    );
+    assert_eq!(
+        fit_at(0.4e-3, 1.445e9).on_bound(),
+        Some(("fluid.bulk_modulus", 1.445e9))
+    );
+    // 1 % of the span inside the bound is inside
+    assert_eq!(fit_at(0.4e-3, 1.445e9 + 0.01 * 0.51e9).on_bound(), None);
+    // a physical bound, where the effect is none, does not count: such a fit adds
+    // nothing and stays a fair rival
+    let air = candidate(Effect::EntrainedAir).expect("a candidate");
+    let none = Coordinate::new(&air.fitted[0]).lo;
+    let at_none = Fit {
+        candidate: air.clone(),
+        carried: vec![],
+        name: air.name(),
+        params: Params::default(),
+        values: vec![("fluid.air_fraction", none)],
+        chi2: 1.0,
+        gap: 1.0,
+    };
+    assert_eq!(at_none.on_bound(), None);
+}
+
 /// A recalibration starts at its known value, the middle of its bounds, where the
 /// optimiser's first trust region was 1e-13 wide (`Z_OFFSET`): the bulk modulus on
 /// seed 1's steps with form error and nothing hidden stayed at exactly 1.7e9 (gap

@@ -31,6 +31,7 @@ fn run_taking<'t>(
         gap: first.gap,
         score,
         parameters: Default::default(),
+        on_bound: None,
     };
     let candidates = vec![
         scored(taken.name(), 100.0),
