@@ -6,7 +6,9 @@ use super::*;
 
 /// The experiment of each effect's CI case: the cheapest that shows it, measured
 /// (`hbench blind --effect E --experiment K --seeds 1`, CPU s for the whole case):
-/// on the steps every effect was named first and fitted within 2 % in 3-45 s
+/// on the steps every effect but the air (a softer oil to the steps once the bulk
+/// modulus's recalibration can move, session 16) was named first and fitted within 2 %
+/// in 3-45 s
 /// (manifold losses, which bring the passages, 45 s); the same cases on the sweep
 /// took 53-566 s (the sweep keeps the passages' fast oil columns ringing). Viscous
 /// friction runs on the chirp (30 s), so open-loop data are in the sample; the sweep
