@@ -218,9 +218,8 @@ impl<'a> Problem<'a> {
 /// on ftol after 2 evaluations at its start (the bulk modulus on seed 1's steps with form
 /// error and nothing hidden: gap 2.281 at the start, 2.175 at -1.2 %, measured). Every
 /// recalibration whose screening kept the known value stayed there. Shifted past the
-/// coordinates' reach (+-13.8, 1e-6 of the
-/// span, `Coordinate::coordinate`), no parameter is ever near zero, and xtol's relative
-/// test reads about 2e-5 of z.
+/// coordinates' reach (+-13.8, 1e-6 of the span, `Coordinate::coordinate`), no
+/// parameter is ever near zero, and xtol's relative test reads about 2e-5 of z.
 const Z_OFFSET: f64 = 20.0;
 
 /// Finite-difference step in the unbounded coordinate: about 1 % of a parameter's range

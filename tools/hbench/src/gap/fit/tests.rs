@@ -86,14 +86,12 @@ fn a_fit_that_ended_on_a_bound_is_told() {
         either_sign: false,
         bounds: Some([1.445e9, 1.955e9]),
     };
-    let fit_at = |delay: f64, modulus: f64| Fit {
-        candidate: c.clone(),
-        carried: vec![bulk],
-        name: c.name(),
-        params: Params::default(),
-        values: vec![("sensors.delay", delay), ("fluid.bulk_modulus", modulus)],
-        chi2: 1.0,
-        gap: 1.0,
+    let fit_at = |delay: f64, modulus: f64| {
+        ended_at(
+            &c,
+            vec![bulk],
+            vec![("sensors.delay", delay), ("fluid.bulk_modulus", modulus)],
+        )
     };
     assert_eq!(fit_at(0.4e-3, 1.6e9).on_bound(), None);
     assert_eq!(
@@ -110,16 +108,21 @@ fn a_fit_that_ended_on_a_bound_is_told() {
     // nothing and stays a fair rival
     let air = candidate(Effect::EntrainedAir).expect("a candidate");
     let none = Coordinate::new(&air.fitted[0]).lo;
-    let at_none = Fit {
-        candidate: air.clone(),
-        carried: vec![],
-        name: air.name(),
+    let at_none = ended_at(&air, vec![], vec![("fluid.air_fraction", none)]);
+    assert_eq!(at_none.on_bound(), None);
+}
+
+/// A fit of `c`, with `carried`, that ended at `values` (no simulation behind it).
+fn ended_at(c: &Candidate, carried: Vec<Fitted>, values: Vec<(&'static str, f64)>) -> Fit {
+    Fit {
+        candidate: c.clone(),
+        carried,
+        name: c.name(),
         params: Params::default(),
-        values: vec![("fluid.air_fraction", none)],
+        values,
         chi2: 1.0,
         gap: 1.0,
-    };
-    assert_eq!(at_none.on_bound(), None);
+    }
 }
 
 /// A recalibration starts at its known value, the middle of its bounds, where the
