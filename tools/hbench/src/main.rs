@@ -232,6 +232,11 @@ enum Command {
         /// Only tabulate the cases of these blind.json files again (no simulation)
         #[arg(long)]
         summarise: Vec<PathBuf>,
+        /// With --summarise: judge the cases not yet judged against their rivals (every
+        /// other candidate and recalibration fitted to each case's noise-free record; a
+        /// study judges its cases as it goes)
+        #[arg(long, requires = "summarise")]
+        rivals: bool,
         #[arg(long, default_value = "out/blind")]
         out: PathBuf,
     },
@@ -370,6 +375,7 @@ fn main() -> ExitCode {
             simulators,
             form_error,
             summarise,
+            rivals,
             out,
         } => {
             let kinds = if experiments.is_empty() {
@@ -390,7 +396,7 @@ fn main() -> ExitCode {
                     out: &out,
                 })
             } else {
-                gap::blind::summarise(&summarise, &out)
+                gap::blind::summarise(&summarise, &out, rivals)
             }
         }
         Command::Bench {

@@ -3,7 +3,9 @@
 //! never sees the answer; the table says how often the hidden effect is the first one
 //! named, how close its fitted magnitude comes, and how much of the gap closes, over all
 //! cases and over the identifiable ones; per bench (the model or the peer simulator, with
-//! or without model-form error) when the study holds several.
+//! or without model-form error) when the study holds several. Each case with one hidden
+//! effect is also judged against its rivals (`rivals`): whether the record could tell
+//! the effect from every other candidate and recalibration at all.
 
 use std::path::Path;
 
@@ -21,6 +23,7 @@ use super::hide::{measure_design, measure_truth, truth, Kind, Truth};
 use super::variants::{section_4_4, FormError, Simulator};
 use super::MIN_IMPROVEMENT;
 
+pub mod rivals;
 mod table;
 #[cfg(test)]
 pub use table::table;
@@ -95,6 +98,10 @@ pub struct Case {
     /// A contested step asked again at the end of the run (`revision::Revision`).
     #[serde(default)]
     pub revision: Option<serde_json::Value>,
+    /// The hidden effect against its closest rival on the noise-free record
+    /// (`rivals`; single hidden effects only, absent in studies run before it).
+    #[serde(default)]
+    pub rivalry: Option<rivals::Rivalry>,
 }
 
 fn rust_name() -> String {
@@ -113,6 +120,11 @@ impl Case {
     pub fn all_found(&self) -> bool {
         self.hidden.iter().all(|h| self.named.contains(h))
             && (!self.hidden.is_empty() || self.named.is_empty())
+    }
+    /// Identifiable, and told from every rival (`rivals`); None when not judged.
+    pub fn told_from_rivals(&self) -> Option<bool> {
+        let r = self.rivalry.as_ref()?;
+        Some(self.identifiable == Some(true) && r.told())
     }
     pub fn magnitude_error(&self) -> Option<f64> {
         Some((self.fitted? / self.truth? - 1.0).abs())
@@ -384,6 +396,7 @@ pub fn case_advised(
             .revision
             .as_ref()
             .and_then(|r| serde_json::to_value(r).ok()),
+        rivalry: None,
     };
     let recommended = outcome.advice.as_ref().and_then(|a| {
         let best = a.best.as_ref()?;
@@ -436,14 +449,47 @@ pub fn case_advised(
 /// Offset of the advised record's noise seed from the case's: a new record, new noise.
 const ADVISED_SEED: u64 = 2000;
 
-/// Tabulate a study's blind.json again (after a change of the table, or to merge runs).
-pub fn summarise(files: &[std::path::PathBuf], out: &Path) -> Result<(), String> {
+/// A case judged against its rivals (`rivals`); a judgement that fails is said on stderr
+/// and left out, the case kept.
+fn judged(c: &Case, label: &str) -> Option<rivals::Rivalry> {
+    rivals::judge(c, false).unwrap_or_else(|e| {
+        eprintln!("{label}: not judged against its rivals: {e}");
+        None
+    })
+}
+
+/// Tabulate a study's blind.json again (after a change of the table, or to merge runs);
+/// with `rivals`, the cases not yet judged against their rivals are judged first (one
+/// fit per candidate on each case's noise-free records, no workflow run).
+pub fn summarise(files: &[std::path::PathBuf], out: &Path, rivals: bool) -> Result<(), String> {
     let mut cases: Vec<Case> = Vec::new();
     for f in files {
         let text = std::fs::read_to_string(f).map_err(|e| format!("{}: {e}", f.display()))?;
         let more: Vec<Case> =
             serde_json::from_str(&text).map_err(|e| format!("{}: {e}", f.display()))?;
         cases.extend(more);
+    }
+    if rivals {
+        let open: Vec<usize> = (0..cases.len())
+            .filter(|&i| cases[i].rivalry.is_none() && !cases[i].hidden.is_empty())
+            .collect();
+        let bar = crate::parallel::bar(open.len(), "judging rivals", true);
+        for i in open {
+            let c = &cases[i];
+            let label = format!(
+                "{} {} {} #{}",
+                c.simulator,
+                c.hidden.join("+"),
+                c.experiment,
+                c.seed
+            );
+            bar.set_message(label.clone());
+            cases[i].rivalry = judged(&cases[i], &label);
+            // written as it goes: the judgement of a long study can be read while it runs
+            write(out, &cases)?;
+            bar.inc(1);
+        }
+        bar.finish_and_clear();
     }
     let md = write(out, &cases)?;
     println!("{md}");
@@ -541,7 +587,10 @@ pub fn main(o: &Options) -> Result<(), String> {
         );
         bar.set_message(label.clone());
         match case_advised(sim, form_error, &set, &kinds, seed, o.follow_advice) {
-            Ok(c) => cases.push(c),
+            Ok(mut c) => {
+                c.rivalry = judged(&c, &label);
+                cases.push(c);
+            }
             // on stderr whether or not the bar is shown: a hidden bar's println prints
             // nothing, and a peer study without numpy once ended with 0 cases, silently
             Err(e) => {

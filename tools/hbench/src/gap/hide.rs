@@ -226,7 +226,7 @@ fn draw_hidden(hidden: &[Effect], rng: &mut Pcg64) -> Vec<(&'static str, f64)> {
 }
 
 /// `base` with the hidden effects on at the drawn magnitudes.
-fn with_hidden(base: &Params, hidden: &[Effect], drawn: &[(&'static str, f64)]) -> Params {
+pub fn with_hidden(base: &Params, hidden: &[Effect], drawn: &[(&'static str, f64)]) -> Params {
     let mut p = base.clone();
     for &e in hidden {
         p.effects.set(e, true);
