@@ -9,7 +9,7 @@
 //! the Python/scipy peer on the same scenario, judged against its own rtol 1e-9 run; and
 //! the CPU cost of each 1 ms communication step in the fixed-step real-time mode.
 
-mod cpu;
+pub(crate) mod cpu;
 mod peer;
 
 use hbmodel::control::trajectory::Trajectory;

@@ -106,6 +106,7 @@ pub fn table(cases: &[Case]) -> String {
     }
     row(&mut md, "**all**", cases.iter().collect());
     md.push_str(&rivals_line(cases));
+    md.push_str(&cpu_line(cases));
     md.push_str(&advice_line(cases));
     md.push_str(&revision_line(cases));
     md.push_str(&spread_line(cases));
@@ -282,6 +283,42 @@ fn rivals_line(cases: &[Case]) -> String {
         );
     }
     line
+}
+
+/// CPU seconds of the cases' analyses per experiment (issue 14 item 7: a 2 s record in
+/// 60 s on two cores), median and largest; empty for studies run before it was recorded.
+fn cpu_line(cases: &[Case]) -> String {
+    let mut kinds: Vec<&str> = cases
+        .iter()
+        .filter(|c| c.cpu_seconds.is_some())
+        .map(|c| c.experiment.as_str())
+        .collect();
+    kinds.sort();
+    kinds.dedup();
+    if kinds.is_empty() {
+        return String::new();
+    }
+    let per: Vec<String> = kinds
+        .iter()
+        .map(|k| {
+            let mut t: Vec<f64> = cases
+                .iter()
+                .filter(|c| c.experiment == *k)
+                .filter_map(|c| c.cpu_seconds)
+                .collect();
+            t.sort_by(f64::total_cmp);
+            format!(
+                "{k} median {:.0} s, largest {:.0} s over {}",
+                t[t.len() / 2],
+                t[t.len() - 1],
+                t.len()
+            )
+        })
+        .collect();
+    format!(
+        "\nCPU time of an analysis (every thread): {}.\n",
+        per.join("; ")
+    )
 }
 
 /// A Bayes factor in a table line.

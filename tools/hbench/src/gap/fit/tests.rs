@@ -158,3 +158,31 @@ fn a_fit_started_at_the_middle_of_its_bounds_moves() {
         target.gap(&s.known)
     );
 }
+
+/// On a record holding no valve lag the valve lag's fit seeks the static valve, a spool
+/// faster than any D765: before the fit's bounds (`effects::FASTEST_SPOOL`,
+/// `LEAST_SPOOL_DAMPING`) it went to the registry's 20000 rad/s with a damping of 0.1,
+/// 1 s of CPU a simulation, and cost most of an analysis (measured on the 2 s chirp).
+/// Now a bound of its fit stops it, and a fit stopped there is no candidate.
+#[test]
+fn a_valve_lag_fitted_where_there_is_none_is_stopped_by_the_fastest_d765() {
+    use crate::gap::blind::Setup;
+    use crate::gap::effects::candidate;
+    use crate::gap::hide::Kind;
+    use crate::gap::tests::record;
+    use crate::gap::variants::Simulator;
+
+    let s = Setup::new(Simulator::Rust, true, &[], 1);
+    let records = [record(&s, Kind::Steps, 1)];
+    let target = crate::gap::target_of(&records).expect("a target");
+    let lag = candidate(Effect::ValveDynamics).expect("a candidate");
+    let f = fit(&target, &s.known, &lag, &[]);
+    let stopped = f.on_bound();
+    assert!(
+        stopped.is_some_and(|(p, _)| p == "sv1.natural_frequency" || p == "sv1.damping"),
+        "{:?} gap {} against {}",
+        f.values,
+        f.gap,
+        target.gap(&s.known)
+    );
+}
