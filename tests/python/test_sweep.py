@@ -282,8 +282,9 @@ def test_dask_cluster_matches_the_single_process_run_and_survives_a_killed_worke
     assert len(ids) == len(set(ids)) == POINTS, "a point lost or counted twice"
     assert set(ids) == set(serial)
     assert all(r["status"] == "ok" for r in got), [r["error"] for r in got if r["status"] != "ok"]
-    workers = {r["worker"] for r in got}
-    assert len(workers) == 2, f"both workers should have run points: {workers}"
+    # the scheduler spread the work: w1 held points when it was killed (in_flight). Whether
+    # it finished one before is timing: on a loaded machine every record came from w2
+    # (seen 2026-11-26, beside a blind study), so the records' workers prove nothing more
     killed = f":{victim.pid}"
     rerun = [r for r in got if r["id"] in in_flight]
     assert len(rerun) == len(in_flight) and not any(r["worker"].endswith(killed) for r in rerun), \

@@ -129,7 +129,10 @@ enum Command {
         /// one per --data, in the same order
         #[arg(long, required = true)]
         experiment: Vec<PathBuf>,
-        /// Starting model (parameter TOML); default: built-in parameters, every effect off
+        /// The model you know (parameter TOML), which the workflow adds to and recalibrates;
+        /// default: built-in parameters, every effect off. Give it: from the default the
+        /// first effects named are often what every bench has (friction, leakage), not
+        /// what this bench lacks
         #[arg(long)]
         model: Option<PathBuf>,
         /// Directory for the report and the fitted parameter file

@@ -47,6 +47,10 @@ pub struct Case {
     /// recorded).
     #[serde(default)]
     pub fitted_std: Option<f64>,
+    /// The fitted parameter the record trades that fit against most (`fit::spread`), with
+    /// their correlation: a record that cannot set the two apart biases both.
+    #[serde(default)]
+    pub fitted_traded: Option<(String, f64)>,
     pub initial_gap: f64,
     pub remaining_gap: f64,
     /// Mean square, over the compared samples, of what the hidden effects change in the
@@ -73,6 +77,9 @@ pub struct Case {
     pub advised: Option<String>,
     #[serde(default)]
     pub named_after_advice: Option<Vec<String>>,
+    /// Why the bench could not record the advised design, when it could not.
+    #[serde(default)]
+    pub advice_failed: Option<String>,
     /// The first hidden effect's first parameter as that record's analysis fitted it.
     #[serde(default)]
     pub fitted_after_advice: Option<f64>,
@@ -283,14 +290,14 @@ fn named(outcome: &super::Outcome, base: &Params, hidden: &[Effect]) -> Vec<Stri
         .collect()
 }
 
-/// The first hidden effect's parameter `path` and its standard error as `outcome` fitted
-/// it: added, or recalibrated when the effect was on already.
+/// The first hidden effect's parameter `path` as `outcome` fitted it (added, or
+/// recalibrated when the effect was on already), with its spread when the step has one.
 fn fitted_of(
     outcome: &super::Outcome,
     base: &Params,
     hidden: &[Effect],
     path: &str,
-) -> (Option<f64>, Option<f64>) {
+) -> (Option<f64>, Option<super::fit::Spread>) {
     let first = hidden.first();
     outcome
         .steps
@@ -303,8 +310,7 @@ fn fitted_of(
         })
         .find_map(|s| {
             let v = s.parameters.get(path)?.as_f64()?;
-            let std = s.spread.iter().find(|x| x.path == path).and_then(|x| x.std);
-            Some((v, std))
+            Some((v, s.spread.iter().find(|x| x.path == path).cloned()))
         })
         .map_or((None, None), |(v, d)| (Some(v), d))
 }
@@ -354,7 +360,7 @@ pub fn case_advised(
         Some((p, v)) => (*p, Some(*v)),
         None => ("", None),
     };
-    let (fitted, fitted_std) = fitted_of(&outcome, base, hidden, path);
+    let (fitted, spread) = fitted_of(&outcome, base, hidden, path);
     // an effect that needs others brings them along: they are hidden too
     let mut all_hidden: Vec<Effect> = Vec::new();
     for e in hidden {
@@ -382,7 +388,10 @@ pub fn case_advised(
             .collect(),
         truth: value,
         fitted,
-        fitted_std,
+        fitted_std: spread.as_ref().and_then(|x| x.std),
+        fitted_traded: spread
+            .and_then(|x| x.most_correlated)
+            .map(|m| (m.with.to_string(), m.r)),
         initial_gap: outcome.initial_gap,
         remaining_gap: outcome.remaining_gap,
         visibility: Some(visible),
@@ -392,6 +401,7 @@ pub fn case_advised(
         form: form_error.then(|| s.bench.form.to_json()),
         advised: None,
         named_after_advice: None,
+        advice_failed: None,
         fitted_after_advice: None,
         decided: None,
         advice_between: Vec::new(),
@@ -414,44 +424,79 @@ pub fn case_advised(
     if let (true, false, Some((advice, design, expected))) =
         (follow, case.first_correct(), recommended)
     {
+        case.advised = Some(design.label());
+        let followed = Followed {
+            advice,
+            design,
+            expected,
+            seed,
+            settings,
+        };
+        // a bench that cannot record the design (the peer's solver stopping) leaves the
+        // case as its first record made it, the failure said and counted apart
+        if let Err(e) = followed.record(&mut case, &s, base, hidden, path) {
+            eprintln!("{}: the advised record failed: {e}", design.label());
+            case.advice_failed = Some(e);
+        }
+    }
+    Ok(case)
+}
+
+/// The advice a case's analysis gave and the design it recommended, to be recorded.
+struct Followed<'a> {
+    advice: &'a super::advice::Advice,
+    design: super::experiments::Design,
+    expected: Option<f64>,
+    seed: u64,
+    settings: super::Settings,
+}
+
+impl Followed<'_> {
+    /// The bench recorded under the design (new noise); the record analysed afresh, as
+    /// a user without the question would, and the advice's question decided on it.
+    fn record(
+        &self,
+        case: &mut Case,
+        s: &Setup,
+        base: &Params,
+        hidden: &[Effect],
+        path: &str,
+    ) -> Result<(), String> {
         let sp = SensorParams {
-            seed: seed + ADVISED_SEED,
+            seed: self.seed + ADVISED_SEED,
             ..SensorParams::default()
         };
-        let (experiment, measured) = measure_design(&s.bench, &design, &sp)?;
+        let (experiment, measured) = measure_design(&s.bench, &self.design, &sp)?;
         let record = super::Record {
-            name: design.label(),
+            name: self.design.label(),
             experiment,
             measured,
         };
-        // the record analysed afresh, as a user without the question would
         let again = super::run_with(
             base,
             std::slice::from_ref(&record),
             super::Settings {
                 advise: false,
-                ..settings
+                ..self.settings
             },
         )?;
         case.named_after_advice = Some(named(&again, base, hidden));
         case.fitted_after_advice = fitted_of(&again, base, hidden, path).0;
-        // and the question asked, answered on it (`decision`)
         let (decision, _) = super::decision::decide(
-            &advice.from,
-            &advice.between,
-            &advice.recalibrate,
+            &self.advice.from,
+            &self.advice.between,
+            &self.advice.recalibrate,
             std::slice::from_ref(&record),
-            settings.within,
+            self.settings.within,
             false,
         )?;
-        case.advised = Some(design.label());
         case.decided = decision.winner.clone();
-        case.advice_between = advice.between.clone();
-        case.expected_ln_bayes = expected;
+        case.advice_between = self.advice.between.clone();
+        case.expected_ln_bayes = self.expected;
         case.found_ln_bayes = decision.preference.as_ref().map(|p| p.ln_bayes_factor);
         case.decision = serde_json::to_value(&decision).ok();
+        Ok(())
     }
-    Ok(case)
 }
 
 /// Offset of the advised record's noise seed from the case's: a new record, new noise.
@@ -625,6 +670,8 @@ pub fn main(o: &Options) -> Result<(), String> {
     }
 }
 
+#[cfg(test)]
+mod form_error_sample;
 #[cfg(test)]
 mod tests;
 #[cfg(test)]

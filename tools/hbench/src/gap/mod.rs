@@ -478,7 +478,13 @@ pub fn main(
     let outcome = run_with(&start, &records, settings)?;
     std::fs::write(&fitted, outcome.model.to_toml())
         .map_err(|err| format!("cannot write {}: {err}", fitted.display()))?;
-    report::write(out, &outcome)?;
+    report::write(out, &outcome, model)?;
+    if model.is_none() {
+        println!(
+            "started from {}",
+            report::start_note(None).replace("**", "")
+        );
+    }
     for step in &outcome.steps {
         println!(
             "{} {}: gap {:.2} -> {:.2} ({})",

@@ -61,6 +61,7 @@ fn scratch() -> Result<PathBuf, String> {
 /// Run the peer on `signal` (the reference in closed loop, u1 = -u2 in open loop), one
 /// value per sample of `period`, with the truth's `variant` parameters. Returns per
 /// sample [signal, y, P1, P2, u1] as the peer's sensors read them and its loop applied.
+/// A run that fails keeps its scratch directory (drive, variant) and names it.
 pub fn run(
     variant: &Map<String, Value>,
     experiment: &Experiment,
@@ -68,9 +69,14 @@ pub fn run(
     period: f64,
 ) -> Result<Vec<[f64; 5]>, String> {
     let dir = scratch()?;
-    let result = run_in(&dir, variant, experiment, signal, period);
-    let _ = std::fs::remove_dir_all(&dir);
-    result
+    match run_in(&dir, variant, experiment, signal, period) {
+        Ok(rows) => {
+            let _ = std::fs::remove_dir_all(&dir);
+            Ok(rows)
+        }
+        // the inputs kept, to run the peer again by hand on what failed
+        Err(e) => Err(format!("{e} (its inputs are kept in {})", dir.display())),
+    }
 }
 
 fn run_in(

@@ -365,29 +365,4 @@ mod tests {
         assert!(again.unwrap_err().contains("exists"));
         std::fs::remove_dir_all(&out).unwrap();
     }
-
-    /// Issue 14's targets on the CI sample, one sweep case per hideable effect and per
-    /// bench plus nothing hidden: on identifiable cases the hidden effect is named first,
-    /// with nothing hidden nothing is added. Ignored: each case runs the whole workflow
-    /// (about 1 min of CPU per case before issue 14's scoring, measured); the lead enables
-    /// it once the scoring holds under model-form error:
-    /// `cargo test --release -p hbench -- --ignored form_error_sample`.
-    #[test]
-    #[ignore]
-    fn form_error_sample_names_the_hidden_effect() {
-        use crate::gap::blind::{case_with, table};
-        let mut cases = Vec::new();
-        for sim in Simulator::ALL {
-            for e in Effect::ALL.into_iter().filter(|e| hideable(*e)) {
-                cases.push(case_with(sim, true, &[e], &[Kind::Sweep], 1).unwrap());
-            }
-            cases.push(case_with(sim, true, &[], &[Kind::Sweep], 1).unwrap());
-        }
-        eprintln!("{}", table(&cases));
-        for c in &cases {
-            if c.hidden.is_empty() || c.identifiable == Some(true) {
-                assert!(c.first_correct(), "{c:?}");
-            }
-        }
-    }
 }

@@ -339,7 +339,12 @@ fn advice_line(cases: &[Case]) -> String {
         .copied()
         .filter(|c| c.named_after_advice.is_some())
         .collect();
-    if advised.is_empty() {
+    let failed: Vec<&Case> = missed
+        .iter()
+        .copied()
+        .filter(|c| c.advice_failed.is_some())
+        .collect();
+    if advised.is_empty() && failed.is_empty() {
         return String::new();
     }
     let named = |c: &Case| {
@@ -351,13 +356,24 @@ fn advice_line(cases: &[Case]) -> String {
     let decided = |c: &Case| c.decided.as_ref().is_some_and(|d| c.hidden.contains(d));
     let mut line = format!(
         "\nAdvice followed: {} of the {} cases whose hidden effect was not named first got a \
-         recommended experiment; a record of it, analysed afresh, named the hidden effect first \
+         recommended experiment the bench recorded ({} more could not be recorded); a record of \
+         it, analysed afresh, named the hidden effect first \
          in {}; the question decided on it (`gap --between`) named it in {}.\n",
         advised.len(),
         missed.len(),
+        failed.len(),
         rate(&advised, named),
         rate(&advised, decided)
     );
+    for c in &failed {
+        let _ = writeln!(
+            line,
+            "- {}: {}: the bench could not record it: {}",
+            label(c),
+            c.advised.as_deref().unwrap_or("-"),
+            c.advice_failed.as_deref().unwrap_or("-")
+        );
+    }
     for c in advised {
         let _ = writeln!(
             line,
