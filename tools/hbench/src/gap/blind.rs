@@ -19,10 +19,11 @@ use hbmodel::sensors::SensorParams;
 
 use super::data::COMPARED;
 use super::effects::StepKind;
-use super::hide::{measure_design, measure_truth, truth, Kind, Truth};
+use super::hide::{measure_truth, truth, Kind, Truth};
 use super::variants::{section_4_4, FormError, Simulator};
 use super::MIN_IMPROVEMENT;
 
+mod advised;
 pub mod rivals;
 mod table;
 #[cfg(test)]
@@ -425,7 +426,7 @@ pub fn case_advised(
         (follow, case.first_correct(), recommended)
     {
         case.advised = Some(design.label());
-        let followed = Followed {
+        let followed = advised::Followed {
             advice,
             design,
             expected,
@@ -441,66 +442,6 @@ pub fn case_advised(
     }
     Ok(case)
 }
-
-/// The advice a case's analysis gave and the design it recommended, to be recorded.
-struct Followed<'a> {
-    advice: &'a super::advice::Advice,
-    design: super::experiments::Design,
-    expected: Option<f64>,
-    seed: u64,
-    settings: super::Settings,
-}
-
-impl Followed<'_> {
-    /// The bench recorded under the design (new noise); the record analysed afresh, as
-    /// a user without the question would, and the advice's question decided on it.
-    fn record(
-        &self,
-        case: &mut Case,
-        s: &Setup,
-        base: &Params,
-        hidden: &[Effect],
-        path: &str,
-    ) -> Result<(), String> {
-        let sp = SensorParams {
-            seed: self.seed + ADVISED_SEED,
-            ..SensorParams::default()
-        };
-        let (experiment, measured) = measure_design(&s.bench, &self.design, &sp)?;
-        let record = super::Record {
-            name: self.design.label(),
-            experiment,
-            measured,
-        };
-        let again = super::run_with(
-            base,
-            std::slice::from_ref(&record),
-            super::Settings {
-                advise: false,
-                ..self.settings
-            },
-        )?;
-        case.named_after_advice = Some(named(&again, base, hidden));
-        case.fitted_after_advice = fitted_of(&again, base, hidden, path).0;
-        let (decision, _) = super::decision::decide(
-            &self.advice.from,
-            &self.advice.between,
-            &self.advice.recalibrate,
-            std::slice::from_ref(&record),
-            self.settings.within,
-            false,
-        )?;
-        case.decided = decision.winner.clone();
-        case.advice_between = self.advice.between.clone();
-        case.expected_ln_bayes = self.expected;
-        case.found_ln_bayes = decision.preference.as_ref().map(|p| p.ln_bayes_factor);
-        case.decision = serde_json::to_value(&decision).ok();
-        Ok(())
-    }
-}
-
-/// Offset of the advised record's noise seed from the case's: a new record, new noise.
-const ADVISED_SEED: u64 = 2000;
 
 /// A case judged against its rivals (`rivals`); a judgement that fails is said on stderr
 /// and left out, the case kept.

@@ -13,13 +13,20 @@
 //! fit then simulates the passages' fast oil columns, 25 times the known model's cost);
 //! on the peer air 44, dry and viscous friction 56 each, valve asymmetry 61, internal
 //! leakage 69, the valve's lag 132, the manifold's volume 236, its oil mass 248, the
-//! three 465. The sample takes each effect where it is cheap, seven effects and nothing
-//! hidden on both benches (about 8 CPU min); the manifold's three effects and the
-//! payload, 4 to 17 CPU min a case, are in the CI without form error
-//! (`tests::every_hidden_effect_is_named_first_and_fitted`) and with it in the full study
-//! (docs/gap.md). With nothing hidden the Rust bench is recorded on the chirp: on its
-//! seed-1 steps the workflow adds entrained air for the pressure sensors' 0.40 ms lag
-//! (docs/gap.md, session 16), a known miss of the target the full study counts.
+//! three 465. A case its record does not tell from its rivals asserts nothing (see
+//! `check`), so the sample holds the cheap cases that are told, and nothing hidden on both
+//! benches: on the Rust bench viscous friction, the valve's lag, the sensor delay and dry
+//! friction (all four told), on the peer the valve asymmetry (told). Entrained air and
+//! internal leakage are told on neither bench's seed-1 steps (the air is a softer oil,
+//! ln B 0.5 on the peer; the leakage a null bias or a heavier mass), so with form error
+//! they are in the full study only; the CI's 2026-11-26 run had them on the peer (air
+//! not named, leakage named as its recalibration, about 4 CPU min for no assertion).
+//! The manifold's three effects and the payload, 4 to 17 CPU min a case, are in the CI
+//! without form error (`tests::every_hidden_effect_is_named_first_and_fitted`) and with
+//! it in the full study (docs/gap.md). With nothing hidden the Rust bench is recorded on
+//! the chirp: on its seed-1 steps the workflow adds entrained air for the pressure
+//! sensors' 0.40 ms lag (docs/gap.md, session 16), a known miss of the target
+//! the full study counts.
 
 use super::super::hide::Kind;
 use super::super::variants::Simulator;
@@ -99,14 +106,9 @@ fn on_the_model_with_form_error_the_hidden_effect_is_named() {
 
 #[test]
 fn on_the_independent_peer_the_hidden_effect_is_named() {
-    let cases: Vec<Case> = [
-        Some(Effect::EntrainedAir),
-        Some(Effect::InternalLeakage),
-        Some(Effect::ValveAsymmetry),
-        None,
-    ]
-    .into_iter()
-    .map(|e| judged(Simulator::Peer, e, Kind::Steps))
-    .collect();
+    let cases: Vec<Case> = [Some(Effect::ValveAsymmetry), None]
+        .into_iter()
+        .map(|e| judged(Simulator::Peer, e, Kind::Steps))
+        .collect();
     check(&cases, 1);
 }

@@ -1,0 +1,73 @@
+//! A case's experiment advice put to the test (issue 14 item 6): the bench recorded
+//! again under the design the workflow recommended, that record analysed afresh and the
+//! advice's question decided on it.
+
+use hbmodel::effects::Effect;
+use hbmodel::sensors::SensorParams;
+use hbmodel::Params;
+
+use super::super::advice::Advice;
+use super::super::experiments::Design;
+use super::super::hide::measure_design;
+use super::super::{decision, run_with, Record, Settings};
+use super::{fitted_of, named, Case, Setup};
+
+/// The advice a case's analysis gave and the design it recommended, to be recorded.
+pub struct Followed<'a> {
+    pub advice: &'a Advice,
+    pub design: Design,
+    pub expected: Option<f64>,
+    pub seed: u64,
+    pub settings: Settings,
+}
+
+impl Followed<'_> {
+    /// The bench recorded under the design (new noise); the record analysed afresh, as
+    /// a user without the question would, and the advice's question decided on it.
+    pub fn record(
+        &self,
+        case: &mut Case,
+        s: &Setup,
+        base: &Params,
+        hidden: &[Effect],
+        path: &str,
+    ) -> Result<(), String> {
+        let sp = SensorParams {
+            seed: self.seed + ADVISED_SEED,
+            ..SensorParams::default()
+        };
+        let (experiment, measured) = measure_design(&s.bench, &self.design, &sp)?;
+        let record = Record {
+            name: self.design.label(),
+            experiment,
+            measured,
+        };
+        let again = run_with(
+            base,
+            std::slice::from_ref(&record),
+            Settings {
+                advise: false,
+                ..self.settings
+            },
+        )?;
+        case.named_after_advice = Some(named(&again, base, hidden));
+        case.fitted_after_advice = fitted_of(&again, base, hidden, path).0;
+        let (decision, _) = decision::decide(
+            &self.advice.from,
+            &self.advice.between,
+            &self.advice.recalibrate,
+            std::slice::from_ref(&record),
+            self.settings.within,
+            false,
+        )?;
+        case.decided = decision.winner.clone();
+        case.advice_between = self.advice.between.clone();
+        case.expected_ln_bayes = self.expected;
+        case.found_ln_bayes = decision.preference.as_ref().map(|p| p.ln_bayes_factor);
+        case.decision = serde_json::to_value(&decision).ok();
+        Ok(())
+    }
+}
+
+/// Offset of the advised record's noise seed from the case's: a new record, new noise.
+const ADVISED_SEED: u64 = 2000;
