@@ -241,10 +241,13 @@ class Cluster:
         return set()
 
     def close(self) -> None:
-        for proc in self.procs.values():
+        # workers before the scheduler: a worker told to stop while its scheduler is
+        # going too waits on it, and the teardown took 20 s (measured 2026-11-26)
+        names = [n for n in self.procs if n != "scheduler"] + ["scheduler"]
+        for name in names:
+            proc = self.procs[name]
             if proc.poll() is None:
                 proc.terminate()
-        for proc in self.procs.values():
             try:
                 proc.wait(timeout=20)
             except subprocess.TimeoutExpired:
