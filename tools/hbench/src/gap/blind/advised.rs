@@ -50,8 +50,6 @@ impl Followed<'_> {
                 ..self.settings
             },
         )?;
-        case.named_after_advice = Some(named(&again, base, hidden));
-        case.fitted_after_advice = fitted_of(&again, base, hidden, path).0;
         let (decision, _) = decision::decide(
             &self.advice.from,
             &self.advice.between,
@@ -60,6 +58,10 @@ impl Followed<'_> {
             self.settings.within,
             false,
         )?;
+        // written only once every part has succeeded: a case whose advice failed is
+        // counted with the failures, never also with the records analysed
+        case.named_after_advice = Some(named(&again, base, hidden));
+        case.fitted_after_advice = fitted_of(&again, base, hidden, path).0;
         case.decided = decision.winner.clone();
         case.advice_between = self.advice.between.clone();
         case.expected_ln_bayes = self.expected;

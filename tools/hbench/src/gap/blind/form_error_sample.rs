@@ -42,7 +42,7 @@ use super::*;
 const MAGNITUDE: f64 = 0.25;
 
 /// One case of the sample, judged against its rivals.
-fn judged(sim: Simulator, hidden: Option<Effect>, kind: Kind) -> Case {
+fn judged_case(sim: Simulator, hidden: Option<Effect>, kind: Kind) -> Case {
     let hidden: Vec<Effect> = hidden.into_iter().collect();
     let mut c = case_with(sim, true, &hidden, &[kind], 1).expect("the case runs");
     c.rivalry = rivals::judge(&c, false).expect("the case is judged");
@@ -50,12 +50,13 @@ fn judged(sim: Simulator, hidden: Option<Effect>, kind: Kind) -> Case {
 }
 
 /// The issue's targets, case by case: with nothing hidden nothing is added; a hidden
-/// effect the record tells from its rivals is named first and fitted within MAGNITUDE. A case the record does
-/// not tell is in the table only: naming the rival there is a coin toss the issue does not
-/// score. At least `told` cases must be told, or the test would check nothing.
+/// effect the record tells from its rivals is named first and fitted within MAGNITUDE. A
+/// case the record does not tell is in the table only: naming the rival there is a coin
+/// toss the issue does not score. At least `told` cases must be told, or the test would
+/// check nothing.
 fn check(cases: &[Case], told: usize) {
     eprintln!("{}", table(cases));
-    let mut judged = 0;
+    let mut told_cases = 0;
     for c in cases {
         if c.hidden.is_empty() {
             assert!(c.named.is_empty(), "nothing hidden, something added: {c:?}");
@@ -64,7 +65,7 @@ fn check(cases: &[Case], told: usize) {
         if c.told_from_rivals() != Some(true) {
             continue;
         }
-        judged += 1;
+        told_cases += 1;
         assert!(
             c.first_correct(),
             "told from its rivals, not named first: {c:?}"
@@ -75,8 +76,8 @@ fn check(cases: &[Case], told: usize) {
         assert!(off <= MAGNITUDE, "fitted {off:.2} off the truth: {c:?}");
     }
     assert!(
-        judged >= told,
-        "{judged} cases told from their rivals: {cases:?}"
+        told_cases >= told,
+        "{told_cases} cases told from their rivals: {cases:?}"
     );
 }
 
@@ -89,7 +90,7 @@ fn on_the_model_with_form_error_the_hidden_effect_is_named() {
         (None, Kind::Chirp),
     ]
     .into_iter()
-    .map(|(e, k)| judged(Simulator::Rust, e, k))
+    .map(|(e, k)| judged_case(Simulator::Rust, e, k))
     .collect();
     check(&cases, 3);
 }
@@ -98,7 +99,7 @@ fn on_the_model_with_form_error_the_hidden_effect_is_named() {
 fn on_the_independent_peer_the_hidden_effect_is_named() {
     let cases: Vec<Case> = [Some(Effect::ValveAsymmetry), None]
         .into_iter()
-        .map(|e| judged(Simulator::Peer, e, Kind::Steps))
+        .map(|e| judged_case(Simulator::Peer, e, Kind::Steps))
         .collect();
     check(&cases, 1);
 }
