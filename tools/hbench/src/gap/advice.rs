@@ -24,6 +24,10 @@ use super::fit::Fit;
 use super::hide::{raw, Truth};
 use super::{Step, NOISE_FLOOR_GAP};
 
+mod validity;
+pub use validity::Simulated;
+use validity::{held_ripple, no_evidence, pressure_span};
+
 /// Candidates of the last round compared with the model as it stands: the two best, as
 /// the Bayes factor of `evidence` compares the best with the runner-up.
 pub const LEADING_CANDIDATES: usize = 2;
@@ -52,7 +56,8 @@ pub struct Assessed {
     /// Over the pairs: the least expected ln B (None when a simulation failed).
     pub least_ln_bayes_factor: Option<f64>,
     /// Why the design could not be assessed: a simulation that failed, or a leading model
-    /// that oscillates on its own under it.
+    /// whose run is no evidence under it (`validity`: it oscillates on its own or leaves
+    /// the oil's pressure range).
     pub error: Option<String>,
 }
 
@@ -231,14 +236,10 @@ pub fn earliest_contested(steps: &[Step], rounds: &[Round]) -> Option<Undecided>
 
 /// Noise-free y, P1, P2 of `params` under `design`, as the sensors would read them
 /// (saturating beyond their span), without their noise and lags: the records `hbench hide`
-/// would make of the model, before the noise.
-/// `simulate`'s result: y, P1, P2 per sample, and the model's own oscillation under the
-/// design (`held_ripple`, Pa).
-pub type Simulated = (Vec<[f64; 3]>, f64);
-
-/// Also returns the model's own oscillation under the design (`held_ripple`).
+/// would make of the model, before the noise; with what tells whether the run is evidence
+/// (`validity`).
 pub fn simulate(params: &Params, design: &Design) -> Result<Simulated, String> {
-    let (_, rows) = raw(&Truth::rust(params.clone()), design)?;
+    let (experiment, rows) = raw(&Truth::rust(params.clone()), design)?;
     let clamp = |name: &str, v: f64| {
         let [lo, hi] = sensor_range(name);
         v.clamp(lo, hi)
@@ -247,42 +248,12 @@ pub fn simulate(params: &Params, design: &Design) -> Result<Simulated, String> {
         .iter()
         .map(|&[_, y, p1, p2, _]| [clamp("y", y), clamp("P1", p1), clamp("P2", p2)])
         .collect();
-    Ok((traces, held_ripple(&rows)))
-}
-
-/// Least samples a hold of the reference must last for its end to show whether the loop
-/// comes to rest (0.1 s at 1 kHz: a settled step response of the thesis's loop).
-const MIN_HOLD: usize = 100;
-/// Part of each hold, at its end, where a stable loop has come to rest: on +-2 mm steps
-/// section 4.4's model ends its transient within 70 ms of a 0.3 s hold (measured), so
-/// the last 40 % starts 110 ms after it.
-const HOLD_TAIL: f64 = 0.4;
-/// P1's RMS over the end of a hold, in noise levels, above which the loop oscillates on
-/// its own: the known model rests within 0.4 bar (3 noise levels) on +-2 mm steps, the
-/// bench with a 3.2 kg payload cycles at 12-15 bar (measured, docs/gap.md).
-pub const OSCILLATION_LEVELS: f64 = 10.0;
-
-/// The largest RMS of P1 about its mean over the last HOLD_TAIL of each hold of the
-/// reference (rows of `raw`: reference, y, P1, P2, u), in Pa; 0 when the design holds
-/// the reference nowhere long enough (sweeps, chirps).
-pub fn held_ripple(rows: &[[f64; 5]]) -> f64 {
-    let mut worst = 0.0f64;
-    let mut start = 0;
-    for k in 1..=rows.len() {
-        if k < rows.len() && rows[k][0] == rows[start][0] {
-            continue;
-        }
-        let len = k - start;
-        if len >= MIN_HOLD {
-            let tail = &rows[k - (HOLD_TAIL * len as f64) as usize..k];
-            let n = tail.len() as f64;
-            let mean = tail.iter().map(|r| r[2]).sum::<f64>() / n;
-            let var = tail.iter().map(|r| (r[2] - mean).powi(2)).sum::<f64>() / n;
-            worst = worst.max(var.sqrt());
-        }
-        start = k;
-    }
-    worst
+    Ok(Simulated {
+        traces,
+        held_ripple: held_ripple(&rows),
+        pressures: pressure_span(&rows),
+        supply: experiment.supply_pressure,
+    })
 }
 
 /// Index of a compared signal in `simulate`'s rows.
@@ -364,23 +335,16 @@ fn assess(
                 .iter()
                 .map(|r| r.as_ref().map_err(Clone::clone))
                 .collect();
-            // a leading model that oscillates on its own under the design: its cycle's
-            // phase is not reproducible from one run to the next, and the separation it
-            // makes is no evidence a fit can collect (the payload's advised +-2 mm steps:
-            // expected ln B 1e6, found 5.9, measured)
+            // a leading model whose run is no evidence: its own limit cycle, or pressures
+            // outside the oil's range (`validity`)
             let sigma = noise.iter().find(|(n, _)| *n == "P1").map_or(0.0, |x| x.1);
-            let oscillating = sims.as_ref().ok().and_then(|sims| {
-                sims.iter().zip(leading).find_map(|((_, ripple), (name, _))| {
-                    (sigma > 0.0 && *ripple > OSCILLATION_LEVELS * sigma).then(|| {
-                        format!(
-                            "`{name}` oscillates on its own (P1 {:.1} bar RMS at the end of a hold): a limit cycle's phase is no evidence",
-                            ripple / 1e5
-                        )
-                    })
-                })
+            let invalid = sims.as_ref().ok().and_then(|sims| {
+                sims.iter()
+                    .zip(leading)
+                    .find_map(|(sim, (name, _))| no_evidence(name, sim, sigma))
             });
-            let sims = match (sims, oscillating) {
-                (Ok(s), None) => s.into_iter().map(|(t, _)| t).collect::<Vec<_>>(),
+            let sims = match (sims, invalid) {
+                (Ok(s), None) => s.into_iter().map(|s| &s.traces).collect::<Vec<_>>(),
                 (Ok(_), Some(e)) | (Err(e), _) => {
                     return Assessed {
                         design: *design,

@@ -2,9 +2,18 @@
 //! bench's resonance; the workflow sees the shift and names the manifold's volume and
 //! inertia.
 
-use super::super::hide::measure;
+use super::super::experiments::Design;
+use super::super::hide::{measure_design, Truth};
 use super::*;
+use hbmodel::sensors::SensorParams;
 use hbmodel::Mode;
+
+/// The story's sweep: 1-300 Hz as in the standard design, over STORY_SWEEP s instead of
+/// 2.5 s, which cuts the cost of CI's longest test in proportion. Measured on this
+/// bench (seed 4): the measured resonance reads 232.9 Hz with damping 0.057 on 1.5 s
+/// against 232.5 Hz and 0.054 on 2.5 s; on 1.0 and 1.25 s the bump is too short-lived
+/// for the estimator (no resonance found).
+const STORY_SWEEP: f64 = 1.5;
 
 #[test]
 fn the_missing_manifold_is_named_from_the_resonance_shift() {
@@ -21,7 +30,15 @@ fn the_missing_manifold_is_named_from_the_resonance_shift() {
     let mut bench = known.clone();
     bench.effects.set(Effect::ManifoldVolume, true);
     bench.effects.set(Effect::ManifoldInertia, true);
-    let (experiment, measured) = measure(&bench, Kind::Sweep, 4).unwrap();
+    let design = Design {
+        duration: STORY_SWEEP,
+        ..Design::standard(Kind::Sweep)
+    };
+    let sensors = SensorParams {
+        seed: 4,
+        ..SensorParams::default()
+    };
+    let (experiment, measured) = measure_design(&Truth::rust(bench), &design, &sensors).unwrap();
     let o = super::super::run(&known, &experiment, &measured, false).unwrap();
     // the passages come in first, as a whole: with the losses (which bring the
     // volume and inertia along) fitted near none, or volume and inertia one by one
