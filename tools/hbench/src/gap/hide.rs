@@ -90,11 +90,21 @@ impl Truth {
 /// Sampled, noisy, quantised data of the Rust model `truth` under experiment `kind`.
 #[cfg(test)]
 pub fn measure(truth: &Params, kind: Kind, seed: u64) -> Result<(Experiment, Measured), String> {
+    measure_under(truth, &Design::standard(kind), seed)
+}
+
+/// The same under any `design`.
+#[cfg(test)]
+pub fn measure_under(
+    truth: &Params,
+    design: &Design,
+    seed: u64,
+) -> Result<(Experiment, Measured), String> {
     let sp = SensorParams {
         seed,
         ..SensorParams::default()
     };
-    measure_truth(&Truth::rust(truth.clone()), kind, &sp)
+    measure_design(&Truth::rust(truth.clone()), design, &sp)
 }
 
 /// Weight of the new sample in a first-order lag of time constant `tau` sampled every

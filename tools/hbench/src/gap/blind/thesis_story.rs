@@ -3,9 +3,8 @@
 //! inertia.
 
 use super::super::experiments::Design;
-use super::super::hide::{measure_design, Truth};
+use super::super::hide::measure_under;
 use super::*;
-use hbmodel::sensors::SensorParams;
 use hbmodel::Mode;
 
 /// The story's sweep: 1-300 Hz as in the standard design, over STORY_SWEEP s instead of
@@ -34,11 +33,7 @@ fn the_missing_manifold_is_named_from_the_resonance_shift() {
         duration: STORY_SWEEP,
         ..Design::standard(Kind::Sweep)
     };
-    let sensors = SensorParams {
-        seed: 4,
-        ..SensorParams::default()
-    };
-    let (experiment, measured) = measure_design(&Truth::rust(bench), &design, &sensors).unwrap();
+    let (experiment, measured) = measure_under(&bench, &design, 4).unwrap();
     let o = super::super::run(&known, &experiment, &measured, false).unwrap();
     // the passages come in first, as a whole: with the losses (which bring the
     // volume and inertia along) fitted near none, or volume and inertia one by one
