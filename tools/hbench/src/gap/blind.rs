@@ -81,6 +81,10 @@ pub struct Case {
     /// Why the bench could not record the advised design, when it could not.
     #[serde(default)]
     pub advice_failed: Option<String>,
+    /// The advice's own words when it recommended no design (none separates its
+    /// question): there is nothing to record, and the case is counted apart.
+    #[serde(default)]
+    pub unadvised: Option<String>,
     /// The first hidden effect's first parameter as that record's analysis fitted it.
     #[serde(default)]
     pub fitted_after_advice: Option<f64>,
@@ -403,6 +407,7 @@ pub fn case_advised(
         advised: None,
         named_after_advice: None,
         advice_failed: None,
+        unadvised: None,
         fitted_after_advice: None,
         decided: None,
         advice_between: Vec::new(),
@@ -417,28 +422,16 @@ pub fn case_advised(
         rivalry: None,
         cpu_seconds: Some(cpu_seconds),
     };
-    let recommended = outcome.advice.as_ref().and_then(|a| {
-        let best = a.best.as_ref()?;
-        let d = a.designs.iter().find(|d| &d.label == best)?;
-        Some((a, d.design, d.least_ln_bayes_factor))
-    });
-    if let (true, false, Some((advice, design, expected))) =
-        (follow, case.first_correct(), recommended)
-    {
-        case.advised = Some(design.label());
-        let followed = advised::Followed {
-            advice,
-            design,
-            expected,
+    if follow && !case.first_correct() {
+        advised::follow(
+            &mut case,
+            outcome.advice.as_ref(),
+            &s,
+            hidden,
             seed,
             settings,
-        };
-        // a bench that cannot record the design (the peer's solver stopping) leaves the
-        // case as its first record made it, the failure said and counted apart
-        if let Err(e) = followed.record(&mut case, &s, base, hidden, path) {
-            eprintln!("{}: the advised record failed: {e}", design.label());
-            case.advice_failed = Some(e);
-        }
+            path,
+        );
     }
     Ok(case)
 }

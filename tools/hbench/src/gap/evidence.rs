@@ -95,6 +95,31 @@ pub fn effective_samples(residual: &[f64], blocks: &[usize]) -> (f64, f64) {
     (eff, n as f64 / eff)
 }
 
+/// Relative difference under which two fits' values of one parameter are the same
+/// value: the optimiser stops a fit where its steps change the chi-square and the
+/// coordinates by 1e-6 of them (`fit::TOLERANCE`), and two fits of one model ended up to
+/// 1.2e-4 apart (SV2's flow and null biases fitted as `valve_asymmetry` and as the
+/// `sv2.rated_flow` recalibration on the peer's chirp, measured), while rivals a record
+/// cannot tell apart differ by percents.
+pub const SAME_VALUE: f64 = 1e-3;
+
+/// Whether two fits, each given as its fitted parameters (registry path -> value), are
+/// one model: the same parameters at the same values. `valve_asymmetry` whose fit ends
+/// within the SV2 recalibration's few percent is that recalibration under another name:
+/// no record can tell them apart, and none needs to.
+pub fn same_model(
+    a: &serde_json::Map<String, serde_json::Value>,
+    b: &serde_json::Map<String, serde_json::Value>,
+) -> bool {
+    a.len() == b.len()
+        && a.iter().all(|(path, x)| {
+            let (Some(x), Some(y)) = (x.as_f64(), b.get(path).and_then(|y| y.as_f64())) else {
+                return false;
+            };
+            (x - y).abs() <= SAME_VALUE * x.abs().max(y.abs())
+        })
+}
+
 /// How strongly the data prefer the best candidate over the runner-up.
 #[derive(Debug, Clone, Serialize, PartialEq)]
 pub struct Preference {

@@ -113,11 +113,24 @@ impl Scored {
     }
 
     /// (name, score) of the candidates a preference is read between: a fit that ended on
-    /// a bound is no model the data support, so it is nobody's rival.
+    /// a bound is no model the data support, so it is nobody's rival; nor is a fit that
+    /// is the same model as another contender (`evidence::same_model`), of which the
+    /// recalibration is kept (the account without a new effect, as `selection::choose`
+    /// takes it). On the peer's chirp with a hidden manifold volume the SV2
+    /// recalibration and `valve_asymmetry` ended at one model, and their "cannot tell"
+    /// made the advice look for a design to separate a model from itself (expected ln B
+    /// 0.00 under every design, measured).
     fn contenders(scored: &[Scored]) -> Vec<(String, f64)> {
-        scored
-            .iter()
-            .filter(|s| s.on_bound.is_none())
+        let fair: Vec<&Scored> = scored.iter().filter(|s| s.on_bound.is_none()).collect();
+        let added = |s: &Scored| hbmodel::Effect::from_name(&s.effect).is_some();
+        fair.iter()
+            .filter(|s| {
+                !fair.iter().any(|t| {
+                    !std::ptr::eq(**s, *t)
+                        && evidence::same_model(&s.parameters, &t.parameters)
+                        && (added(s), t.score) > (added(t), s.score)
+                })
+            })
             .map(|s| (s.effect.clone(), s.score))
             .collect()
     }

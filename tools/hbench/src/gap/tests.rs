@@ -169,3 +169,64 @@ fn an_earlier_runs_question_model_does_not_outlive_its_report() {
     assert!(!question.exists(), "the earlier question was left");
     let _ = std::fs::remove_dir_all(&dir);
 }
+
+/// The SV2 recalibration and `valve_asymmetry` fitted to one model are one contender:
+/// the peer's chirp with a hidden manifold volume (seed 1, form error) ended step 2 with
+/// both at these values (score 120 each), and "cannot tell them apart" sent the advice
+/// looking for a design to separate a model from itself. The recalibration is kept, and
+/// the real question is the one left: SV2's flow or SV1's null leakage. An asymmetry
+/// fitted beyond the recalibration's few percent is another model, and stays a rival.
+#[test]
+fn a_fit_that_is_another_candidates_model_is_no_rival() {
+    use super::{evidence, Scored};
+    let scored = |effect: &str, score: f64, values: &[(&'static str, f64)]| Scored {
+        effect: effect.into(),
+        gap: 6.25,
+        score,
+        parameters: super::json_values(values),
+        on_bound: None,
+    };
+    let sv2 = |flow: f64| {
+        [
+            ("sv1.null_bias", 0.017957616582235658),
+            ("sv2.null_bias", 0.006304561533894137),
+            ("sv2.rated_flow", flow),
+        ]
+    };
+    let round = [
+        scored("valve_asymmetry", 120.4, &sv2(3.356937340027999e-4)),
+        scored(
+            "sv2.rated_flow",
+            120.3,
+            &[
+                ("sv1.null_bias", 0.017955436251875845),
+                ("sv2.null_bias", 0.0063052671520086034),
+                ("sv2.rated_flow", 3.356876070341372e-4),
+            ],
+        ),
+        scored(
+            "sv1.null_leakage",
+            119.0,
+            &[
+                ("sv1.null_bias", 0.006776597947103891),
+                ("sv1.null_leakage", 4.4332573383039906e-13),
+            ],
+        ),
+    ];
+    let names = |c: Vec<(String, f64)>| c.into_iter().map(|(n, _)| n).collect::<Vec<_>>();
+    assert_eq!(
+        names(Scored::contenders(&round)),
+        ["sv2.rated_flow", "sv1.null_leakage"]
+    );
+    let p = evidence::preference(&Scored::contenders(&round)).expect("two contenders");
+    assert_eq!(
+        (p.best.as_str(), p.runner_up.as_str()),
+        ("sv2.rated_flow", "sv1.null_leakage")
+    );
+    // 5 % more flow than the recalibration's: another model
+    let apart = [
+        scored("valve_asymmetry", 120.4, &sv2(1.05 * 3.356876070341372e-4)),
+        round[1].clone(),
+    ];
+    assert_eq!(names(Scored::contenders(&apart)).len(), 2);
+}

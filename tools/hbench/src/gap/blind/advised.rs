@@ -73,3 +73,41 @@ impl Followed<'_> {
 
 /// Offset of the advised record's noise seed from the case's: a new record, new noise.
 const ADVISED_SEED: u64 = 2000;
+
+/// Follow the `advice` a case's analysis gave (its hidden effect not named first): record
+/// the recommended design and analyse it (`Followed::record`). A design is recommended
+/// only when it separates the question; the best of the designs when none does is no
+/// recommendation, recording it tests nothing, and the case keeps the advice's words in
+/// `unadvised`. A bench that cannot record the design (the peer's solver stopping)
+/// leaves the case as its first record made it, the failure said and counted apart.
+pub fn follow(
+    case: &mut Case,
+    advice: Option<&Advice>,
+    s: &Setup,
+    hidden: &[Effect],
+    seed: u64,
+    settings: Settings,
+    path: &str,
+) {
+    let recommended = advice.filter(|a| a.separates).and_then(|a| {
+        let best = a.best.as_ref()?;
+        let d = a.designs.iter().find(|d| &d.label == best)?;
+        Some((a, d.design, d.least_ln_bayes_factor))
+    });
+    let Some((advice, design, expected)) = recommended else {
+        case.unadvised = advice.map(|a| a.recommendation.clone());
+        return;
+    };
+    case.advised = Some(design.label());
+    let followed = Followed {
+        advice,
+        design,
+        expected,
+        seed,
+        settings,
+    };
+    if let Err(e) = followed.record(case, s, &s.known, hidden, path) {
+        eprintln!("{}: the advised record failed: {e}", design.label());
+        case.advice_failed = Some(e);
+    }
+}

@@ -344,7 +344,12 @@ fn advice_line(cases: &[Case]) -> String {
         .copied()
         .filter(|c| c.advice_failed.is_some())
         .collect();
-    if advised.is_empty() && failed.is_empty() {
+    let unadvised: Vec<&Case> = missed
+        .iter()
+        .copied()
+        .filter(|c| c.unadvised.is_some())
+        .collect();
+    if advised.is_empty() && failed.is_empty() && unadvised.is_empty() {
         return String::new();
     }
     let named = |c: &Case| {
@@ -356,12 +361,14 @@ fn advice_line(cases: &[Case]) -> String {
     let decided = |c: &Case| c.decided.as_ref().is_some_and(|d| c.hidden.contains(d));
     let mut line = format!(
         "\nAdvice followed: {} of the {} cases whose hidden effect was not named first got a \
-         recommended experiment the bench recorded ({} more could not be recorded); a record of \
+         recommended experiment the bench recorded ({} more could not be recorded, {} got no \
+         recommendation: no design separates their question); a record of \
          it, analysed afresh, named the hidden effect first \
          in {}; the question decided on it (`gap --between`) named it in {}.\n",
         advised.len(),
         missed.len(),
         failed.len(),
+        unadvised.len(),
         rate(&advised, named),
         rate(&advised, decided)
     );
@@ -372,6 +379,14 @@ fn advice_line(cases: &[Case]) -> String {
             label(c),
             c.advised.as_deref().unwrap_or("-"),
             c.advice_failed.as_deref().unwrap_or("-")
+        );
+    }
+    for c in &unadvised {
+        let _ = writeln!(
+            line,
+            "- {}: no recommendation: {}",
+            label(c),
+            c.unadvised.as_deref().unwrap_or("-")
         );
     }
     for c in advised {

@@ -112,6 +112,41 @@ fn a_fit_that_ended_on_a_bound_is_told() {
     assert_eq!(at_none.on_bound(), None);
 }
 
+/// The spread reports the value the fit ended at, even nearer a bound than the clamp of
+/// its coordinate (a millionth of the span): docs/gap_example's report gave a loss scale
+/// fitted to 4.2e-7 as 1.0e-5 in its "Fitted" line and as 4.2e-7 in its table.
+#[test]
+fn the_spread_reports_a_value_next_to_its_bound_as_fitted() {
+    use crate::gap::blind::Setup;
+    use crate::gap::effects::candidate;
+    use crate::gap::hide::Kind;
+    use crate::gap::target_of;
+    use crate::gap::tests::record;
+    use crate::gap::variants::Simulator;
+
+    let s = Setup::new(Simulator::Rust, false, &[], 1);
+    let records = [record(&s, Kind::Steps, 1)];
+    let target = target_of(&records).expect("a target");
+    let c = candidate(Effect::DryFriction).expect("a candidate");
+    let coordinate = Coordinate::new(&c.fitted[0]);
+    assert!(
+        !c.fitted[0].log,
+        "a linear coordinate: its clamp is a millionth of the span"
+    );
+    let near = coordinate.lo + 1e-8 * (coordinate.hi - coordinate.lo);
+    let mut params = s.known.clone();
+    params.effects.set(Effect::DryFriction, true);
+    param(c.fitted[0].path)
+        .expect("registered")
+        .set(&mut params, near);
+    let f = Fit {
+        params,
+        ..ended_at(&c, vec![], vec![(c.fitted[0].path, near)])
+    };
+    let sp = spread(&target, &f, 1.0);
+    assert_eq!(sp[0].value, near, "{sp:?}");
+}
+
 /// A fit of `c`, with `carried`, that ended at `values` (no simulation behind it).
 fn ended_at(c: &Candidate, carried: Vec<Fitted>, values: Vec<(&'static str, f64)>) -> Fit {
     Fit {
