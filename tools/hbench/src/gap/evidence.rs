@@ -106,12 +106,14 @@ pub const SAME_VALUE: f64 = 1e-3;
 /// Whether two fits, each given as its fitted parameters (registry path -> value), are
 /// one model: the same parameters at the same values. `valve_asymmetry` whose fit ends
 /// within the SV2 recalibration's few percent is that recalibration under another name:
-/// no record can tell them apart, and none needs to.
+/// no record can tell them apart, and none needs to. Fits that say nothing of their
+/// parameters (an empty map) are never taken for one model.
 pub fn same_model(
     a: &serde_json::Map<String, serde_json::Value>,
     b: &serde_json::Map<String, serde_json::Value>,
 ) -> bool {
-    a.len() == b.len()
+    !a.is_empty()
+        && a.len() == b.len()
         && a.iter().all(|(path, x)| {
             let (Some(x), Some(y)) = (x.as_f64(), b.get(path).and_then(|y| y.as_f64())) else {
                 return false;

@@ -229,4 +229,7 @@ fn a_fit_that_is_another_candidates_model_is_no_rival() {
         round[1].clone(),
     ];
     assert_eq!(names(Scored::contenders(&apart)).len(), 2);
+    // fits whose parameters are not given are not taken for one model
+    let blank = serde_json::Map::new();
+    assert!(!evidence::same_model(&blank, &blank));
 }
