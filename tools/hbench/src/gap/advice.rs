@@ -5,14 +5,21 @@
 //! closest pair most is recommended, with the separation expected at the record's noise.
 //!
 //! For two models a and b and a record of n samples of y, P1, P2 with noise sigma, the
-//! chi-square of the wrong model exceeds that of the right one by
-//! sum(((a - b) / sigma)^2) on average (the noise's own part cancels in expectation), and
-//! the scores of `evidence` divide it by the residual's correlation time tau: the expected
-//! ln Bayes factor is that sum / (2 tau). tau is the one the record showed (at least 1):
-//! the form error that coloured its residual is there on the next record too. It is an
-//! upper bound of what a refit on the new record would show: each candidate's parameters
-//! were fitted to the old record and a refit can take up part of the difference; and the
-//! price of the parameters (k ln(N / tau)) is left out, as between models of equal k.
+//! wrong model's chi-square exceeds the right one's by D = sum(((a - b) / sigma)^2) on
+//! average. The right one's is not n: the record's model-form error is on the next
+//! record too, and the record showed it as its misfit m (the gap squared, in noise
+//! levels). `evidence::score` reads a drop against the misfit, over the N / tau
+//! independent samples the residual's correlation time tau leaves, so the expected ln B
+//! is (n / tau) / 2 ln(1 + D / (n m)): D / (2 tau) at the noise floor (m = 1). Read
+//! against the sensor noise alone, the peer's steps advice expected ln B 77-338 where the
+//! records found 4.2-9.7 (misfit 3-5 noise levels, docs/gap.md session 20).
+//!
+//! It is still an upper bound of what a refit on the new record would show: each
+//! candidate's parameters were fitted to the old record and a refit can take up part of
+//! the difference; and the price of the parameters (k ln(N / tau)) is left out, as
+//! between models of equal k. A design the records already hold is read at what they
+//! showed (`recorded`): another record of it brings the same form error and the same
+//! question.
 
 use hbmodel::Params;
 use serde::Serialize;
@@ -24,7 +31,9 @@ use super::fit::Fit;
 use super::hide::{raw, Truth};
 use super::{Step, NOISE_FLOOR_GAP};
 
+mod recorded;
 mod validity;
+pub use recorded::observed;
 pub use validity::Simulated;
 use validity::{held_ripple, no_evidence, pressure_span};
 
@@ -33,6 +42,29 @@ use validity::{held_ripple, no_evidence, pressure_span};
 pub const LEADING_CANDIDATES: usize = 2;
 /// What the reports call the model as the workflow left it.
 pub const AS_IS: &str = "as is";
+
+/// What a new record's evidence is read against: what the record showed of its residual.
+#[derive(Debug, Clone, Copy, Serialize)]
+pub struct Scale {
+    /// Correlation time of the residual (samples, at least 1).
+    pub tau: f64,
+    /// Mean square of the residual in noise levels, the gap squared (at least 1): the
+    /// model-form error a new record shows too.
+    pub misfit: f64,
+}
+
+impl Scale {
+    /// The residual of correlation time `tau` and RMS `gap` noise levels.
+    pub fn new(tau: f64, gap: f64) -> Scale {
+        let tau = if tau.is_finite() { tau.max(1.0) } else { 1.0 };
+        let misfit = if gap.is_finite() {
+            (gap * gap).max(1.0)
+        } else {
+            1.0
+        };
+        Scale { tau, misfit }
+    }
+}
 
 /// How far apart two leading models come out under one design.
 #[derive(Debug, Clone, Serialize)]
@@ -43,8 +75,11 @@ pub struct Separation {
     pub chi2: f64,
     /// RMS of (a - b) / sigma over the samples: the separation in noise levels.
     pub rms: f64,
-    /// chi2 / (2 tau).
+    /// (n / tau) / 2 ln(1 + chi2 / (n misfit)), n the samples compared; no more than
+    /// `recorded` when the records hold the design.
     pub ln_bayes_factor: f64,
+    /// The ln B between the two that the records showed, when they hold this design.
+    pub recorded: Option<f64>,
 }
 
 /// One design, assessed.
@@ -70,6 +105,8 @@ pub struct Advice {
     pub leading: Vec<String>,
     /// Correlation time of the record's residual the evidence is divided by.
     pub tau: f64,
+    /// The record's misfit (gap squared) a new record's evidence is read against.
+    pub misfit: f64,
     pub designs: Vec<Assessed>,
     /// Label of the design that separates the closest pair most.
     pub best: Option<String>,
@@ -90,7 +127,7 @@ pub struct Advice {
 }
 
 /// One round of the workflow as the advice needs it: the correlation time of the residual
-/// the round started from, and each candidate's score and fit.
+/// the round started from, and each candidate's score and fit (its gap the misfit).
 #[derive(Debug, Clone)]
 pub struct Round {
     /// The model the round fitted its candidates from.
@@ -166,13 +203,15 @@ pub fn leading(
 /// error, steps: the last round's question was which of the later small effects to add,
 /// and its advised moves named nothing, measured). Its two fits, from the model before
 /// that step, are the leading models. Without a contested step, the model as it stands
-/// and the last round's best.
+/// and the last round's best. `recorded` are the designs the records were made under
+/// (`experiments::design_of`).
 pub fn after(
     model: &Params,
     steps: &[Step],
     gap: f64,
     rounds: &[Round],
     noise: &[(&'static str, f64)],
+    recorded: &[Design],
     progress: bool,
 ) -> Option<Advice> {
     if !needed(steps, gap) {
@@ -180,7 +219,13 @@ pub fn after(
     }
     let designs = super::experiments::designs();
     if let Some(u) = earliest_contested(steps, rounds) {
-        let mut a = advise(&u.from, &u.pair, noise, u.tau, &designs, progress);
+        let round = &rounds[u.step];
+        let scale = Scale::new(u.tau, u.gap);
+        let mut assessed = assess(&u.pair, noise, scale, &designs, progress, false);
+        recorded::read_at_records(&mut assessed, recorded, |a, b| {
+            observed(&round.fits, None, a, b)
+        });
+        let mut a = recommend(&u.from, &u.pair, scale, assessed);
         a.question = format!(
             "step {} could not tell `{}` from `{}`",
             u.step + 1,
@@ -197,7 +242,12 @@ pub fn after(
         .filter(|_| rounds.len() == steps.len())
         .map(|s| s.name.as_str());
     let leading = leading(model, &last.fits, accepted);
-    Some(advise(model, &leading, noise, last.tau, &designs, progress))
+    let scale = Scale::new(last.tau, gap);
+    let mut assessed = assess(&leading, noise, scale, &designs, progress, false);
+    recorded::read_at_records(&mut assessed, recorded, |a, b| {
+        observed(&last.fits, accepted, a, b)
+    });
+    Some(recommend(model, &leading, scale, assessed))
 }
 
 /// A step the record could not decide.
@@ -207,6 +257,8 @@ pub struct Undecided {
     pub step: usize,
     /// Correlation time of the residual its round started from.
     pub tau: f64,
+    /// The better gap of its two fits: the misfit neither explained.
+    pub gap: f64,
     /// The model before the step.
     pub from: Params,
     /// Its choice and its rival, as fitted in that round.
@@ -218,18 +270,15 @@ pub fn earliest_contested(steps: &[Step], rounds: &[Round]) -> Option<Undecided>
     steps.iter().enumerate().find_map(|(i, s)| {
         let rival = contested(s)?;
         let round = rounds.get(i)?;
-        let pick = |name: &str| {
-            round
-                .fits
-                .iter()
-                .find(|(_, f)| f.name == name)
-                .map(|(_, f)| (f.name.clone(), f.params.clone()))
-        };
+        let fit = |name: &str| round.fits.iter().find(|(_, f)| f.name == name);
+        let (chosen, other) = (fit(&s.name)?, fit(rival)?);
+        let pick = |(_, f): &(f64, Fit)| (f.name.clone(), f.params.clone());
         Some(Undecided {
             step: i,
             tau: round.tau,
+            gap: chosen.1.gap.min(other.1.gap),
             from: round.start.clone(),
-            pair: [pick(&s.name)?, pick(rival)?],
+            pair: [pick(chosen), pick(other)],
         })
     })
 }
@@ -261,12 +310,12 @@ fn column(signal: &str) -> Option<usize> {
     ["y", "P1", "P2"].iter().position(|s| *s == signal)
 }
 
-/// How far apart `a` and `b` come out at the noise levels `noise`.
+/// How far apart `a` and `b` come out at the noise levels `noise`, read against `scale`.
 pub fn separation(
     (na, a): (&str, &[[f64; 3]]),
     (nb, b): (&str, &[[f64; 3]]),
     noise: &[(&'static str, f64)],
-    tau: f64,
+    scale: Scale,
 ) -> Separation {
     let mut chi2 = 0.0;
     let mut count = 0usize;
@@ -281,40 +330,29 @@ pub fn separation(
             .sum::<f64>();
         count += a.len().min(b.len());
     }
+    let n = count.max(1) as f64;
     Separation {
         a: na.to_string(),
         b: nb.to_string(),
         chi2,
-        rms: (chi2 / count.max(1) as f64).sqrt(),
-        ln_bayes_factor: chi2 / (2.0 * tau),
+        rms: (chi2 / n).sqrt(),
+        // ln_1p: a separation far below the misfit is chi2 / (2 tau misfit) to the last digit
+        ln_bayes_factor: n / scale.tau / 2.0 * (chi2 / (n * scale.misfit)).ln_1p(),
+        recorded: None,
     }
 }
 
-/// Simulate the `leading` models under every design (in parallel) and say which design
-/// separates the closest pair of them most, at the record's `noise` and correlation time
-/// `tau`. The candidates among them were fitted from `from`.
-pub fn advise(
-    from: &Params,
-    leading: &[(String, Params)],
-    noise: &[(&'static str, f64)],
-    tau: f64,
-    designs: &[Design],
-    progress: bool,
-) -> Advice {
-    assess(from, leading, noise, tau, designs, progress, false)
-}
-
-/// `advise`, every pair or (`first_only`) only the first model against each other one.
+/// Simulate the `leading` models under every design (in parallel) and assess how far
+/// apart each design sets every pair of them or (`first_only`) the first model and each
+/// other one, at the record's `noise`, read against its residual's `scale`.
 fn assess(
-    from: &Params,
     leading: &[(String, Params)],
     noise: &[(&'static str, f64)],
-    tau: f64,
+    scale: Scale,
     designs: &[Design],
     progress: bool,
     first_only: bool,
-) -> Advice {
-    let tau = if tau.is_finite() { tau.max(1.0) } else { 1.0 };
+) -> Vec<Assessed> {
     let runs: Vec<(usize, usize)> = (0..designs.len())
         .flat_map(|d| (0..leading.len()).map(move |m| (d, m)))
         .collect();
@@ -325,7 +363,7 @@ fn assess(
         |&(d, m)| format!("{} under {}", leading[m].0, designs[d].label()),
         |&(d, m)| simulate(&leading[m].1, &designs[d]),
     );
-    let assessed: Vec<Assessed> = designs
+    designs
         .iter()
         .enumerate()
         .map(|(d, design)| {
@@ -363,7 +401,7 @@ fn assess(
                         (&leading[i].0, sims[i]),
                         (&leading[j].0, sims[j]),
                         noise,
-                        tau,
+                        scale,
                     ));
                 }
             }
@@ -379,8 +417,7 @@ fn assess(
                 error: None,
             }
         })
-        .collect();
-    recommend(from, leading, tau, assessed)
+        .collect()
 }
 
 /// The pair of `a` whose separation is least.
@@ -392,8 +429,7 @@ fn closest(a: &Assessed) -> Option<&Separation> {
 
 /// Expected ln B a design must reach to be recommended for its shortness: ten times the
 /// "clear" level, because the expectation is an upper bound (a refit on the new record
-/// takes up part of the difference, and the record's model-form error adds to its
-/// misfit).
+/// takes up part of the difference).
 pub const SAFE_LN_BAYES: f64 = 10.0 * CLEAR_LN_BAYES;
 
 /// The shortest design whose closest pair reaches SAFE_LN_BAYES (the cheapest record
@@ -402,7 +438,7 @@ pub const SAFE_LN_BAYES: f64 = 10.0 * CLEAR_LN_BAYES;
 fn recommend(
     from: &Params,
     leading: &[(String, Params)],
-    tau: f64,
+    scale: Scale,
     designs: Vec<Assessed>,
 ) -> Advice {
     let least = |a: &Assessed| a.least_ln_bayes_factor.unwrap_or(f64::NEG_INFINITY);
@@ -454,7 +490,8 @@ fn recommend(
                 .join(", ")
         ),
         leading: leading.iter().map(|(n, _)| n.clone()).collect(),
-        tau,
+        tau: scale.tau,
+        misfit: scale.misfit,
         designs,
         best: best_label,
         separates,
@@ -483,9 +520,12 @@ pub fn markdown(a: &Advice) -> String {
     let mut md = format!(
         "\n## What to measure next\n\nOn this record {}. \
          Each model was simulated, noise-free, under every experiment design; the separation \
-         is the RMS difference in noise levels of y, P1, P2, and ln B = chi-square difference \
-         / (2 tau), tau = {:.1} as the record showed.\n\n| design |",
-        a.question, a.tau
+         is the RMS difference in noise levels of y, P1, P2 over n samples, and the expected \
+         ln B = (n / tau) / 2 ln(1 + chi-square difference / (n m)), with the residual's \
+         correlation time tau = {:.1} and its misfit m = {:.2} (the gap squared) as the record \
+         showed. A design the records hold is read at no more than the ln B they showed \
+         (marked *recorded*).\n\n| design |",
+        a.question, a.tau, a.misfit
     );
     let pairs: Vec<String> = a
         .designs
@@ -511,7 +551,16 @@ pub fn markdown(a: &Advice) -> String {
             )),
             None => {
                 for p in &d.pairs {
-                    md.push_str(&format!(" {:.3}, {} |", p.rms, number(p.ln_bayes_factor)));
+                    let mark = if p.recorded.is_some() {
+                        " *recorded*"
+                    } else {
+                        ""
+                    };
+                    md.push_str(&format!(
+                        " {:.3}, {}{mark} |",
+                        p.rms,
+                        number(p.ln_bayes_factor)
+                    ));
                 }
             }
         }

@@ -231,3 +231,30 @@ pub fn designs() -> Vec<Design> {
     ]);
     out
 }
+
+/// How close a record's reference or commands must follow a design's, as a fraction of
+/// its amplitude, for the record to be of that design: the commands are recorded through
+/// the 16-bit converter (0.3 mV steps, 0.1 % of the 0.3 V chirp), the references exactly.
+const SAME_SIGNAL: f64 = 0.01;
+
+/// The design of `designs()` a record was made under, if any: the same operating point
+/// and drive, and the record's reference (closed loop) or SV1 command (open loop)
+/// following the design's at every sample.
+pub fn design_of(experiment: &Experiment, measured: &super::data::Measured) -> Option<Design> {
+    let column = match &experiment.drive {
+        Drive::Proportional { reference, .. } => reference.as_str(),
+        Drive::OpenLoop => "u1",
+    };
+    let recorded = measured.get(column)?;
+    designs().into_iter().find(|d| {
+        let Ok((e, signal)) = d.samples() else {
+            return false;
+        };
+        e == *experiment
+            && signal.len() == recorded.len()
+            && signal
+                .iter()
+                .zip(recorded)
+                .all(|(a, b)| (a - b).abs() <= SAME_SIGNAL * d.amplitude)
+    })
+}

@@ -318,12 +318,17 @@ pub fn run_with(start: &Params, records: &[Record], settings: Settings) -> Resul
         .advise
         .then(|| {
             let noise = &target.records[0].noise;
-            advice::after(&model, &steps, gap, &rounds, noise, progress).or_else(|| {
+            let recorded: Vec<experiments::Design> = records
+                .iter()
+                .filter_map(|r| experiments::design_of(&r.experiment, &r.measured))
+                .collect();
+            advice::after(&model, &steps, gap, &rounds, noise, &recorded, progress).or_else(|| {
                 // explained within the noise: what could the record not have shown?
                 (gap <= NOISE_FLOOR_GAP)
                     .then(|| {
                         let tau = rounds.last().map_or(1.0, |r| r.tau);
-                        advice::unseen::check(&model, &target, noise, tau, progress)
+                        let scale = advice::Scale::new(tau, gap);
+                        advice::unseen::check(&model, &target, noise, scale, progress)
                     })
                     .flatten()
             })

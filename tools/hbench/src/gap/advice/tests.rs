@@ -7,6 +7,25 @@ use super::super::experiments::{designs, Design, Kind};
 use super::super::Scored;
 use super::*;
 
+/// The advice between `leading`, no design recorded: the separations at the noise floor
+/// of correlation time `tau`.
+fn advise(
+    from: &Params,
+    leading: &[(String, Params)],
+    noise: &[(&'static str, f64)],
+    tau: f64,
+    designs: &[Design],
+    progress: bool,
+) -> Advice {
+    let scale = Scale::new(tau, 1.0);
+    recommend(
+        from,
+        leading,
+        scale,
+        assess(leading, noise, scale, designs, progress, false),
+    )
+}
+
 /// The record's noise: that of the sensors `hide` samples with (SensorParams::default).
 fn noise() -> Vec<(&'static str, f64)> {
     let sp = SensorParams::default();
@@ -188,7 +207,7 @@ fn the_advice_is_asked_when_the_record_leaves_the_leaders_undecided() {
         tau: 1.0,
         fits: round,
     }];
-    let none = after(&model, &[], 1.05, &rounds, &noise(), false);
+    let none = after(&model, &[], 1.05, &rounds, &noise(), &[], false);
     assert!(none.is_none());
 }
 
@@ -342,4 +361,101 @@ fn a_design_under_which_a_leading_model_cavitates_is_not_recommended() {
     assert!(e.contains("`payload` leaves the oil's range"), "{e}");
     assert!(a.designs[1].error.is_none(), "{:?}", a.designs[1].error);
     assert_eq!(a.best.as_deref(), Some(a.designs[1].label.as_str()));
+}
+
+/// The expected ln B is what `evidence::score` finds between the two models on a record
+/// whose right model leaves a form error of m - 1 noise variances: a record of n = 4000
+/// samples made of model a, a smooth form error of RMS 3 noise levels (m = 10) and white
+/// noise; model b off from a by 0.5 noise levels RMS. Read against the sensor noise alone
+/// the expectation would be D / 2 = 500, ten times what the score finds.
+#[test]
+fn the_expected_separation_is_what_the_scores_find_under_form_error() {
+    use rand::SeedableRng;
+    use rand_distr::{Distribution, Normal};
+    let n = 4000;
+    let white = Normal::new(0.0, 1.0).unwrap();
+    let mut rng = rand_pcg::Pcg64::seed_from_u64(7);
+    let a: Vec<[f64; 3]> = (0..n).map(|_| [0.0; 3]).collect();
+    let b: Vec<[f64; 3]> = (0..n)
+        .map(|k| [0.5 * 2f64.sqrt() * (k as f64 * 0.05).sin(), 0.0, 0.0])
+        .collect();
+    // form error slow against b's difference (uncorrelated with it), RMS 3
+    let data: Vec<f64> = (0..n)
+        .map(|k| 3.0 * 2f64.sqrt() * (k as f64 * 0.0031 + 0.4).sin() + white.sample(&mut rng))
+        .collect();
+    let chi2 =
+        |m: &[[f64; 3]]| -> f64 { m.iter().zip(&data).map(|(x, d)| (d - x[0]).powi(2)).sum() };
+    let found = (evidence_score(chi2(&b), chi2(&a), n as f64)) / 2.0;
+    let noise = [("y", 1.0)];
+    let s = separation(("a", &a), ("b", &b), &noise, Scale::new(1.0, 10f64.sqrt()));
+    assert!((s.rms - 0.5).abs() < 0.01, "{s:?}");
+    assert!(
+        (s.ln_bayes_factor / found - 1.0).abs() < 0.2,
+        "expected {:.1}, the scores find {found:.1}",
+        s.ln_bayes_factor
+    );
+    let at_noise = separation(("a", &a), ("b", &b), &noise, Scale::new(1.0, 1.0));
+    assert!(at_noise.ln_bayes_factor > 5.0 * found, "{at_noise:?}");
+}
+
+/// ln B between the same k: `evidence::score`'s drop from `before` to `after` over `n`
+/// independent samples.
+fn evidence_score(before: f64, after: f64, n: f64) -> f64 {
+    super::super::evidence::score(before, after, n, 0.0)
+}
+
+/// The records' own design is recognised (hide's steps and chirp records, the chirp's
+/// commands through the 16-bit converter), a record of other amplitude is none of them,
+/// and a design they hold is read at the ln B they showed, not the 10^3 the models'
+/// difference alone would promise.
+#[test]
+fn a_design_the_records_hold_is_read_at_what_they_showed() {
+    use super::super::experiments::design_of;
+    use super::super::hide::{measure, measure_under};
+    let known = known_model(&[]);
+    for kind in [Kind::Steps, Kind::Chirp] {
+        let (e, m) = measure(&known, kind, 1).expect("the bench runs");
+        assert_eq!(design_of(&e, &m), Some(Design::standard(kind)), "{kind:?}");
+    }
+    let other = Design {
+        amplitude: 5e-3,
+        ..Design::standard(Kind::Steps)
+    };
+    let (e, m) = measure_under(&known, &other, 1).expect("the bench runs");
+    assert_eq!(design_of(&e, &m), None);
+
+    let mut lagged = known.clone();
+    lagged.effects.set(Effect::ValveDynamics, true);
+    lagged.sv1.natural_frequency = 2.0 * std::f64::consts::PI * 1500.0;
+    let leading = vec![
+        (AS_IS.to_string(), known),
+        ("valve_dynamics".to_string(), lagged),
+    ];
+    let steps = Design::standard(Kind::Steps);
+    let scale = Scale::new(1.0, 1.0);
+    let mut assessed = assess(&leading, &noise(), scale, &[steps, other], false, false);
+    let promised = assessed[0].least_ln_bayes_factor.unwrap();
+    assert!(promised > 1e3, "{promised}");
+    recorded::read_at_records(&mut assessed, &[steps], |_, _| Some(1.5));
+    assert_eq!(assessed[0].least_ln_bayes_factor, Some(1.5));
+    assert_eq!(assessed[0].pairs[0].recorded, Some(1.5));
+    assert!(assessed[1].pairs[0].recorded.is_none());
+    let a = recommend(&leading[0].1, &leading, scale, assessed);
+    assert_eq!(
+        a.best.as_deref(),
+        Some(other.label().as_str()),
+        "{}",
+        a.recommendation
+    );
+}
+
+/// The ln B a round showed between two of its fits, or between the model as it stands
+/// (0 against the round's start, or the winner it took) and a fit.
+#[test]
+fn the_separation_a_round_showed() {
+    let fits = vec![fitted("x", 9.0), fitted("y", 5.0), fitted("z", f64::NAN)];
+    assert_eq!(observed(&fits, None, "x", "y"), Some(2.0));
+    assert_eq!(observed(&fits, None, AS_IS, "y"), Some(2.5));
+    assert_eq!(observed(&fits, Some("x"), AS_IS, "y"), Some(2.0));
+    assert_eq!(observed(&fits, None, AS_IS, "z"), None);
 }

@@ -10,7 +10,7 @@ use hbmodel::Params;
 use super::super::effects::{self, Candidate, StepKind};
 use super::super::experiments::designs;
 use super::super::fit::Target;
-use super::{assess, Advice};
+use super::{assess, recommend, Advice, Scale};
 use crate::gap::evidence::CLEAR_LN_BAYES;
 
 /// `c` switched on in `model` (with what it requires) at the middle of each parameter's
@@ -60,10 +60,10 @@ pub fn check(
     model: &Params,
     target: &Target,
     noise: &[(&'static str, f64)],
-    tau: f64,
+    scale: Scale,
     progress: bool,
 ) -> Option<Advice> {
-    let unseen = blind_spots(model, target, tau);
+    let unseen = blind_spots(model, target, scale.tau);
     if unseen.is_empty() {
         return None;
     }
@@ -73,7 +73,8 @@ pub fn check(
         .collect();
     let mut leading = vec![(super::AS_IS.to_string(), model.clone())];
     leading.extend(unseen.into_iter().map(|(n, p, _)| (n, p)));
-    let mut advice = assess(model, &leading, noise, tau, &designs(), progress, true);
+    let assessed = assess(&leading, noise, scale, &designs(), progress, true);
+    let mut advice = recommend(model, &leading, scale, assessed);
     advice.question = format!(
         "the model explains the data within their noise, but the record could not have shown {} at plausible sizes",
         names.join(", ")
