@@ -11,8 +11,9 @@
 //! levels). `evidence::score` reads a drop against the misfit, over the N / tau
 //! independent samples the residual's correlation time tau leaves, so the expected ln B
 //! is (n / tau) / 2 ln(1 + D / (n m)): D / (2 tau) at the noise floor (m = 1). Read
-//! against the sensor noise alone, the peer's steps advice expected ln B 77-338 where the
-//! records found 4.2-9.7 (misfit 3-5 noise levels, docs/gap.md session 20).
+//! against the sensor noise alone, the peer's steps advice expected ln B 59-338 where the
+//! records found 0.8-67; against their misfit (7.8-9.5 noise levels RMS) 0.9-4.0, five
+//! of six within a factor of 2 of what was found (docs/gap.md, session 21).
 //!
 //! It is still an upper bound of what a refit on the new record would show: each
 //! candidate's parameters were fitted to the old record and a refit can take up part of
