@@ -194,3 +194,21 @@ def test_gas_release_keeps_the_chambers_above_vacuum(tmp_path, monkeypatch):
     assert 0.0 < lowest_p1() < peer_model.ATMOSPHERE
     monkeypatch.setattr(peer_model, "RELEASED_AIR", 0.0)
     assert lowest_p1() < 0.0, "without the release the oil would hold tension"
+
+
+@pytest.mark.parametrize("bend", [-0.3, -0.255, -0.1, 0.0, 0.1, 0.3])
+def test_friction_only_dissipates_and_rises_with_speed(bend):
+    """The form error's bent viscous law (variants.rs VISCOUS_BEND_RANGE, +-0.3) at any
+    speed the bench can reach: the force has the sign of v (friction takes energy, never
+    gives it) and rises with |v|, and at V_VISCOUS it is the linear law's. The thinning
+    law once reversed above V_VISCOUS / |c| (0.73 m/s at c = -0.3) and fed the peer's
+    advised sweeps of seed 1 until they ran away to 28 m/s and 700 bar."""
+    import peer_model
+
+    b = Bench({"friction.viscous_bend": bend})
+    v = np.linspace(-10.0, 10.0, 4001)
+    f = np.array([b.friction(s) for s in v])
+    assert np.all(f * v >= 0.0)
+    assert np.all(np.diff(f) > 0.0)
+    vr = peer_model.V_VISCOUS
+    assert b.friction(vr) == pytest.approx(400.0 * vr, rel=1e-12)

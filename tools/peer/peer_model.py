@@ -81,8 +81,8 @@ DEFAULTS = {
     # section 4.4: 1e-4 L/min/bar across the piston
     "actuator.internal_leakage": 1e-4 * 1e-3 / 60.0 / 1e5,
     "actuator.viscous_friction": 400.0,  # section 4.4
-    # shape of the viscous law: F = b v (1 + c |v| / v_r) / (1 + c), c = 0 the linear law
-    # of section 4.4; a variant bends it (oil film thinning or thickening with speed)
+    # shape of the viscous law (Bench.friction), c = 0 the linear law of section 4.4; a
+    # variant bends it (oil film thinning, c < 0, or thickening, c > 0, with speed)
     "friction.viscous_bend": 0.0,
     "friction.coulomb": 0.0,
     "friction.static_peak": 0.0,
@@ -249,13 +249,27 @@ class Bench:
         """Viscous friction (section 4.4) plus a dry part in the Tustin form the Sidhom
         model builds on (4.5)-(4.13): Coulomb level with an exponential Stribeck peak."""
         p = self.p
-        c = p["friction.viscous_bend"]
-        f = p["actuator.viscous_friction"] * v * (1 + c * abs(v) / V_VISCOUS) / (1 + c)
+        f = p["actuator.viscous_friction"] * v * self.viscous_shape(abs(v) / V_VISCOUS)
         fc, fs = p["friction.coulomb"], p["friction.static_peak"]
         if fc > 0 or fs > 0:
             peak = max(fs - fc, 0.0) * math.exp(-abs(v) / p["friction.stribeck_velocity"])
             f += (fc + peak) * math.tanh(v / V_DRY)
         return f
+
+    def viscous_shape(self, r):
+        """The viscous law's bend at speed r = |v| / V_VISCOUS, as a multiple of the linear
+        law: 1 at r = 1 and 1 / (1 + c) at rest for either sign of the bend c. Thickening
+        (c > 0): (1 + c r) / (1 + c), a force growing as v^2 at speed. Thinning (c < 0):
+        1 / (1 + c - c r), which saturates at b V_VISCOUS / |c|. Both keep the force
+        rising with speed and of the sign of v, so friction only dissipates. The thinning
+        law was once (1 + c r) / (1 + c) too: its force peaked at r = 1 / (2|c|) and
+        reversed beyond 1/|c| (0.86 m/s at c = -0.255), where it fed the motion. The peer's
+        advised 2.5 s and 5 s sweeps of seed 1 (c = -0.255) ran away there to 28 m/s and
+        700-808 bar, with every solver and tolerance (measured, docs/gap.md session 22)."""
+        c = self.p["friction.viscous_bend"]
+        if c >= 0:
+            return (1 + c * r) / (1 + c)
+        return 1 / (1 + c - c * r)
 
     def rhs(self, t, x, u1, u2):
         """(4.1), (4.2), (4.4) with the lumped manifold, and the optional lags."""

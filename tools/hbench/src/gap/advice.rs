@@ -34,7 +34,7 @@ use super::{Step, NOISE_FLOOR_GAP};
 
 mod recorded;
 mod validity;
-pub use recorded::observed;
+use recorded::observed;
 pub use validity::Simulated;
 use validity::{held_ripple, no_evidence, pressure_span};
 
@@ -76,9 +76,12 @@ pub struct Separation {
     pub chi2: f64,
     /// RMS of (a - b) / sigma over the samples: the separation in noise levels.
     pub rms: f64,
-    /// (n / tau) / 2 ln(1 + chi2 / (n misfit)), n the samples compared; no more than
-    /// `recorded` when the records hold the design.
+    /// The ln B the advice reads the design at: `simulated`, or no more than `recorded`
+    /// when the records hold the design.
     pub ln_bayes_factor: f64,
+    /// (n / tau) / 2 ln(1 + chi2 / (n misfit)), n the samples compared: what the two
+    /// models' simulations promise, kept beside what the records showed.
+    pub simulated: f64,
     /// The ln B between the two that the records showed, when they hold this design.
     pub recorded: Option<f64>,
 }
@@ -332,13 +335,15 @@ pub fn separation(
         count += a.len().min(b.len());
     }
     let n = count.max(1) as f64;
+    // ln_1p: a separation far below the misfit is chi2 / (2 tau misfit) to the last digit
+    let simulated = n / scale.tau / 2.0 * (chi2 / (n * scale.misfit)).ln_1p();
     Separation {
         a: na.to_string(),
         b: nb.to_string(),
         chi2,
         rms: (chi2 / n).sqrt(),
-        // ln_1p: a separation far below the misfit is chi2 / (2 tau misfit) to the last digit
-        ln_bayes_factor: n / scale.tau / 2.0 * (chi2 / (n * scale.misfit)).ln_1p(),
+        ln_bayes_factor: simulated,
+        simulated,
         recorded: None,
     }
 }
@@ -525,7 +530,7 @@ pub fn markdown(a: &Advice) -> String {
          ln B = (n / tau) / 2 ln(1 + chi-square difference / (n m)), with the residual's \
          correlation time tau = {:.1} and its misfit m = {:.2} (the gap squared) as the record \
          showed. A design the records hold is read at no more than the ln B they showed \
-         (marked *recorded*).\n\n| design |",
+         (marked *recorded*, with what the simulations promised).\n\n| design |",
         a.question, a.tau, a.misfit
     );
     let pairs: Vec<String> = a
@@ -553,9 +558,9 @@ pub fn markdown(a: &Advice) -> String {
             None => {
                 for p in &d.pairs {
                     let mark = if p.recorded.is_some() {
-                        " *recorded*"
+                        format!(" *recorded* (simulated {})", number(p.simulated))
                     } else {
-                        ""
+                        String::new()
                     };
                     md.push_str(&format!(
                         " {:.3}, {}{mark} |",

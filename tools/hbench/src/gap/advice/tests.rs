@@ -439,6 +439,8 @@ fn a_design_the_records_hold_is_read_at_what_they_showed() {
     recorded::read_at_records(&mut assessed, &[steps], |_, _| Some(1.5));
     assert_eq!(assessed[0].least_ln_bayes_factor, Some(1.5));
     assert_eq!(assessed[0].pairs[0].recorded, Some(1.5));
+    // what the simulations promised stays beside it in report.json
+    assert_eq!(assessed[0].pairs[0].simulated, promised);
     assert!(assessed[1].pairs[0].recorded.is_none());
     let a = recommend(&leading[0].1, &leading, scale, assessed);
     assert_eq!(

@@ -7,10 +7,11 @@
 //! - its chamber pressures leave the oil's range: below the cavitation band the model's
 //!   stiffness is its cavitation clamp (`hbmodel::fluid::cavitation_factor`), above the
 //!   supply pressure (OIL_CEILING) the piston's inertia pushes oil back into the pump
-//!   line, where no model here has a relief valve or a pump. Neither was checked against a record, and a
-//!   real bench there cavitates or opens its relief valve. Measured: the peer's advised 5 s
-//!   mode-3 sweep (manifold volume hidden, chirp, seed 1) swung its chambers from 0.5 to
-//!   808 bar on the 210 bar supply before its solver gave up (docs/gap.md, session 19).
+//!   line, where no model here has a relief valve or a pump. Neither was checked against a
+//!   record, and a real bench there cavitates or opens its relief valve. Measured: the
+//!   peer's advised 5 s mode-3 sweep of seed 1 bottoms its chambers at 0.9 bar and peaks
+//!   at 217 bar on the 210 bar supply (session 22; the 808 bar once seen there was the
+//!   peer's viscous law feeding the motion, since mended, docs/gap.md).
 
 use hbmodel::fluid::{CAVITATION_BAND, CAVITATION_PRESSURE};
 
@@ -47,7 +48,8 @@ pub const OIL_FLOOR: f64 = CAVITATION_PRESSURE + CAVITATION_BAND;
 /// working pressure, so above a fifth over the supply a real bench would open it. Under
 /// the designs the advice compares (measured) section 4.4's model stays within
 /// 2.3-209.9 bar on the 210 bar supply, a 3.18 kg payload near the loop's stability limit
-/// reaches 216.5 bar on the sweeps, and the peer's failed sweep 808 bar.
+/// reaches 216.5 bar on the sweeps, and the peer's seed-1 bench 217-220 bar on its
+/// advised 2.5 s and 5 s sweeps.
 pub const OIL_CEILING: f64 = 1.2;
 
 /// The largest RMS of P1 about its mean over the last HOLD_TAIL of each hold of the
