@@ -265,7 +265,8 @@ class Bench:
         law was once (1 + c r) / (1 + c) too: its force peaked at r = 1 / (2|c|) and
         reversed beyond 1/|c| (0.86 m/s at c = -0.255), where it fed the motion. The peer's
         advised 2.5 s and 5 s sweeps of seed 1 (c = -0.255) ran away there to 28 m/s and
-        700-808 bar, with every solver and tolerance (measured, docs/gap.md session 22)."""
+        700-808 bar, alike under Radau (rtol 1e-6, 1e-8) and BDF (1e-6) (measured,
+        docs/gap.md session 22)."""
         c = self.p["friction.viscous_bend"]
         if c >= 0:
             return (1 + c * r) / (1 + c)
