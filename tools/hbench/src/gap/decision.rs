@@ -372,9 +372,13 @@ pub fn main(
     recalibrate: &[String],
     records: &[Record],
     within: f64,
+    rtol: f64,
     out: &Path,
 ) -> Result<(), String> {
+    let file_rtol = model.solver.rtol;
+    let model = &super::at_rtol(model, rtol);
     let (d, decided) = decide(model, between, recalibrate, records, within, true)?;
+    let decided = super::at_rtol(&decided, file_rtol);
     let write = |file: &str, text: String| {
         let path = out.join(file);
         std::fs::write(&path, text).map_err(|e| format!("cannot write {}: {e}", path.display()))
@@ -495,7 +499,7 @@ mod tests {
                 std::slice::from_ref(&toml),
                 Some(&model),
                 out,
-                0.15,
+                crate::gap::Settings::default(),
                 &between,
                 recalibrate,
             )

@@ -11,6 +11,7 @@ use hbmodel::params::param;
 use hbmodel::Params;
 use levenberg_marquardt::{LeastSquaresProblem, LevenbergMarquardt};
 use nalgebra::{DMatrix, DVector, Dyn, Owned};
+use rayon::prelude::*;
 use std::ops::Range;
 
 use super::data::{Experiment, Measured};
@@ -90,10 +91,16 @@ impl Target<'_> {
     /// Noise-normalised residuals of a model, record after record and signal after
     /// signal; None if a simulation fails.
     pub fn residuals(&self, p: &Params) -> Option<DVector<f64>> {
-        let mut r = Vec::with_capacity(self.len());
-        for record in &self.records {
-            record.residuals_into(p, &mut r)?;
-        }
+        // the records' simulations are independent (a sweep and steps side by side)
+        let parts: Vec<Vec<f64>> = self
+            .records
+            .par_iter()
+            .map(|record| {
+                let mut r = Vec::with_capacity(record.len());
+                record.residuals_into(p, &mut r).map(|()| r)
+            })
+            .collect::<Option<_>>()?;
+        let r = parts.concat();
         r.iter()
             .all(|x| x.is_finite())
             .then(|| DVector::from_vec(r))
@@ -245,18 +252,17 @@ impl LeastSquaresProblem<f64, Dyn, Dyn> for Problem<'_> {
     }
 
     fn jacobian(&self) -> Option<DMatrix<f64>> {
-        // the trait gives &self; the columns are independent simulations
-        let mut j = DMatrix::zeros(self.r.len(), self.z.len());
-        for k in 0..self.z.len() {
-            let mut z = self.z.clone();
-            z[k] += FD_STEP;
-            let r = self
-                .target
-                .residuals(&self.params_at(&z))
-                .unwrap_or_else(|| DVector::from_element(self.r.len(), FAILED_RESIDUAL));
-            j.set_column(k, &((r - &self.r) / FD_STEP));
-        }
-        Some(j)
+        // the trait gives &self; the columns are independent simulations, run on the
+        // cores other fits have left (`crate::parallel::map`)
+        let columns: Vec<DVector<f64>> = (0..self.z.len())
+            .into_par_iter()
+            .map(|k| {
+                let mut z = self.z.clone();
+                z[k] += FD_STEP;
+                (self.eval(&z) - &self.r) / FD_STEP
+            })
+            .collect();
+        Some(DMatrix::from_columns(&columns))
     }
 }
 
@@ -285,9 +291,10 @@ const SCREEN_POINTS: usize = 5;
 /// Optimiser budget (the crate's patience: evaluations per parameter).
 const PATIENCE: usize = 8;
 /// Relative change of the chi-square and of the coordinates below which a fit stops.
-/// The residuals are simulations at rtol 1e-6, so a smaller change is the integrator's
-/// noise: with the crate's default (7e-15) a third of an analysis's fits ran out of
-/// patience chasing it (session 12), at twice the simulations for the same choices.
+/// The residuals are simulations at rtol 1e-6 or looser (`super::RTOL`), so a smaller
+/// change is the integrator's noise: with the crate's default (7e-15) a third of an
+/// analysis's fits ran out of patience chasing it (session 12), at twice the
+/// simulations for the same choices.
 const TOLERANCE: f64 = 1e-6;
 
 /// The optimiser every fit uses.
@@ -333,30 +340,43 @@ pub fn fit(target: &Target, base: &Params, c: &Candidate, carried: &[Fitted]) ->
         })
         .collect();
     let first = problem.coords[0].fitted;
-    let mut best: Option<(f64, DVector<f64>)> = None;
     let signs: &[f64] = if first.either_sign {
         &[1.0, -1.0]
     } else {
         &[1.0]
     };
-    for sign in signs {
-        for i in 0..SCREEN_POINTS {
-            let u = i as f64 / (SCREEN_POINTS - 1) as f64;
-            let [lo, hi] = first.plausible;
-            let v = if first.log {
-                lo * (hi / lo).powf(u)
-            } else {
-                lo + (hi - lo) * u
-            };
+    let screened: Vec<DVector<f64>> = signs
+        .iter()
+        .flat_map(|sign| {
+            (0..SCREEN_POINTS).map(move |i| {
+                let u = i as f64 / (SCREEN_POINTS - 1) as f64;
+                let [lo, hi] = first.plausible;
+                let v = if first.log {
+                    lo * (hi / lo).powf(u)
+                } else {
+                    lo + (hi - lo) * u
+                };
+                sign * v
+            })
+        })
+        .map(|v| {
             let mut z = DVector::from_vec(defaults.clone());
-            z[0] = problem.coords[0].coordinate(sign * v);
-            let chi2 = problem.eval(&z).norm_squared();
-            if best.as_ref().is_none_or(|(b, _)| chi2 < *b) {
-                best = Some((chi2, z));
-            }
+            z[0] = problem.coords[0].coordinate(v);
+            z
+        })
+        .collect();
+    let chi2: Vec<f64> = screened
+        .par_iter()
+        .map(|z| problem.eval(z).norm_squared())
+        .collect();
+    // the first of the lowest, in screening order
+    let mut best = 0;
+    for (k, c) in chi2.iter().enumerate() {
+        if *c < chi2[best] {
+            best = k;
         }
     }
-    let (_, mut z0) = best.expect("at least one screening point");
+    let mut z0 = screened[best].clone();
     let own = c.fitted.len();
     if !carried.is_empty() && own > 0 {
         // the candidate's own parameters first, the carried ones held where the model has

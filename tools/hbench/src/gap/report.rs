@@ -266,6 +266,7 @@ pub fn write(out: &Path, o: &Outcome, model: Option<&Path>) -> Result<(), String
         "samples": o.samples,
         "rejected": o.rejected,
         "noise_floor": 1.0,
+        "rtol": o.start.solver.rtol,
         "noise_floor_gap": super::NOISE_FLOOR_GAP,
         "records": records,
         "verdict": o.verdict,

@@ -157,7 +157,7 @@ fn an_earlier_runs_question_model_does_not_outlive_its_report() {
         std::slice::from_ref(&toml),
         Some(&model),
         &out,
-        0.15,
+        Settings::default(),
         &[],
         &[],
     )
@@ -167,6 +167,10 @@ fn an_earlier_runs_question_model_does_not_outlive_its_report() {
     // the delay is named and the record explained: no question
     assert!(report["advice"].is_null(), "{}", report["advice"]);
     assert!(!question.exists(), "the earlier question was left");
+    // simulated at the workflow's tolerance; the fitted model keeps the file's own
+    assert_eq!(report["rtol"], super::RTOL);
+    let fitted = hbmodel::Params::load(&out.join("fitted_model.toml")).expect("a model");
+    assert_eq!(fitted.solver.rtol, s.known.solver.rtol);
     let _ = std::fs::remove_dir_all(&dir);
 }
 
