@@ -493,13 +493,12 @@ pub fn main(
     };
     // the file's own tolerance stays in the fitted model it leads to
     let file_rtol = start.solver.rtol;
-    if let Some(f) = model.filter(|_| file_rtol != Params::default().solver.rtol) {
-        if file_rtol != rtol {
-            eprintln!(
-                "note: {}: solver.rtol = {file_rtol:e} is kept in fitted_model.toml; the workflow simulates at --rtol {rtol:e}",
-                f.display()
-            );
-        }
+    let set_apart = file_rtol != Params::default().solver.rtol && file_rtol != rtol;
+    if let Some(f) = model.filter(|_| set_apart) {
+        eprintln!(
+            "note: {}: solver.rtol = {file_rtol:e} is kept in fitted_model.toml; the workflow simulates at --rtol {rtol:e}",
+            f.display()
+        );
     }
     std::fs::create_dir_all(out)
         .map_err(|err| format!("cannot create {}: {err}", out.display()))?;
