@@ -159,7 +159,8 @@ enum Command {
         /// Relative tolerance of the workflow's simulations of the model. At 1e-5 the
         /// passages' simulations cost half those at 1e-6, and the chi-square differences
         /// the scores read moved by 14 and 4 RMS on two chirp records, against 11 and 2 at
-        /// 1e-6 (docs/gap.md). A model file's solver.rtol is kept in fitted_model.toml
+        /// 1e-6 (docs/gap.md). The fits stop where a step changes the misfit by less than
+        /// this. A model file's solver.rtol is kept in fitted_model.toml
         #[arg(long, default_value_t = gap::RTOL)]
         rtol: f64,
     },

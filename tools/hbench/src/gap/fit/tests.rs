@@ -221,3 +221,41 @@ fn a_valve_lag_fitted_where_there_is_none_is_stopped_by_the_fastest_d765() {
         target.gap(&s.known)
     );
 }
+
+/// The fits stop where a step changes the misfit by less than the simulations'
+/// tolerance (`optimiser`). Stopping at 1e-5 instead of 1e-6 cut the nothing-hidden chirp
+/// record's analysis from 28-31 s to 20-21 s wall with the same steps (session 24); what
+/// must hold is that the looser stop ends at as good a fit as one simulated and stopped
+/// at 1e-6. A valve lag hidden in the chirp is the slowest of the bench's fits to settle
+/// (up to 131 simulations, session 23) and its valley is flat: the two fits' natural
+/// frequencies are 1 % apart (2404 and 2380 rad/s) at misfits 5e-5 apart (measured), so
+/// the misfit is what is compared: stopping at 1e-3 ends 2.5e-3 above the tight fit's
+/// misfit, and this test fails (measured).
+#[test]
+fn a_fit_stopped_at_its_simulation_tolerance_ends_as_well_as_a_tighter_fit() {
+    use crate::gap::blind::Setup;
+    use crate::gap::effects::candidate;
+    use crate::gap::evidence::SAME_VALUE;
+    use crate::gap::hide::Kind;
+    use crate::gap::tests::record;
+    use crate::gap::variants::Simulator;
+    use crate::gap::{at_rtol, RTOL};
+
+    let s = Setup::new(Simulator::Rust, true, &[Effect::ValveDynamics], 1);
+    let records = [record(&s, Kind::Chirp, 1)];
+    let target = crate::gap::target_of(&records).expect("a target");
+    let lag = candidate(Effect::ValveDynamics).expect("a candidate");
+    let loose = fit(&target, &at_rtol(&s.known, RTOL), &lag, &[]);
+    let tight = fit(&target, &at_rtol(&s.known, 1e-6), &lag, &[]);
+    const { assert!(RTOL > 1e-6, "the workflow's tolerance is the looser one") };
+    // the looser fit's parameters simulated as tightly as the other fit's: what is left
+    // of the gap between them is where the looser fit stopped, not its simulations
+    let stopped = target.gap(&at_rtol(&loose.params, 1e-6));
+    assert!(
+        (stopped / tight.gap - 1.0).abs() < SAME_VALUE,
+        "gap {stopped} against {} ({:?} against {:?})",
+        tight.gap,
+        loose.values,
+        tight.values
+    );
+}
