@@ -96,13 +96,13 @@ pub fn effective_samples(residual: &[f64], blocks: &[usize]) -> (f64, f64) {
 }
 
 /// Relative difference under which two fits' values of one parameter are the same
-/// value: the optimiser stops a fit where its steps change the chi-square and the
-/// coordinates by less than the simulation's tolerance (`fit::optimiser`). Two fits of
-/// one model ended up to 1.2e-4 apart when fits stopped at 1e-6 (SV2's flow and null
-/// biases fitted as `valve_asymmetry` and as the `sv2.rated_flow` recalibration on the
-/// peer's chirp, measured), and stopping at 1e-5 moved no fitted value of the Rust
-/// chirp study and the item-7 records by more than 2.7e-4 (session 24), while rivals a
-/// record cannot tell apart differ by percents.
+/// value: the optimiser stops a fit where its steps change the chi-square by less than
+/// the simulation's tolerance and the coordinates by less than 1e-6 (`fit::optimiser`).
+/// Two fits of one model ended up to 1.2e-4 apart when fits stopped at 1e-6 (SV2's flow
+/// and null biases fitted as `valve_asymmetry` and as the `sv2.rated_flow`
+/// recalibration on the peer's chirp, measured), and 3.6e-4 apart with the chi-square's
+/// stop at 1e-5 (the same pair on the peer's steps with nothing hidden, session 24),
+/// while rivals a record cannot tell apart differ by percents.
 pub const SAME_VALUE: f64 = 1e-3;
 
 /// Whether two fits, each given as its fitted parameters (registry path -> value), are

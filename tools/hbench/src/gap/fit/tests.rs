@@ -223,11 +223,10 @@ fn a_valve_lag_fitted_where_there_is_none_is_stopped_by_the_fastest_d765() {
 }
 
 /// The fits stop where a step changes the misfit by less than the simulations'
-/// tolerance (`optimiser`). Stopping at 1e-5 instead of 1e-6 cut the nothing-hidden chirp
-/// record's analysis from 28-31 s to 20-21 s wall with the same steps (session 24); what
-/// must hold is that the looser stop ends at as good a fit as one simulated and stopped
-/// at 1e-6. A valve lag hidden in the chirp is the slowest of the bench's fits to settle
-/// (up to 131 simulations, session 23) and its valley is flat: the two fits' natural
+/// tolerance (`optimiser`): a smaller change is the integrator's noise. What must hold
+/// is that the looser stop ends at as good a fit as one simulated and stopped at 1e-6.
+/// A valve lag hidden in the chirp is the slowest of the bench's fits to settle (up to
+/// 131 simulations, session 23) and its valley is flat: the two fits' natural
 /// frequencies are 1 % apart (2404 and 2380 rad/s) at misfits 5e-5 apart (measured), so
 /// the misfit is what is compared: stopping at 1e-3 ends 2.5e-3 above the tight fit's
 /// misfit, and this test fails (measured).
