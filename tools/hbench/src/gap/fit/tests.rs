@@ -239,17 +239,19 @@ fn a_fit_stopped_at_its_simulation_tolerance_ends_as_well_as_a_tighter_fit() {
     use crate::gap::tests::record;
     use crate::gap::variants::Simulator;
     use crate::gap::{at_rtol, RTOL};
+    /// The tolerance the workflow simulated and stopped at before session 23.
+    const TIGHT: f64 = 1e-6;
 
     let s = Setup::new(Simulator::Rust, true, &[Effect::ValveDynamics], 1);
     let records = [record(&s, Kind::Chirp, 1)];
     let target = crate::gap::target_of(&records).expect("a target");
     let lag = candidate(Effect::ValveDynamics).expect("a candidate");
     let loose = fit(&target, &at_rtol(&s.known, RTOL), &lag, &[]);
-    let tight = fit(&target, &at_rtol(&s.known, 1e-6), &lag, &[]);
-    const { assert!(RTOL > 1e-6, "the workflow's tolerance is the looser one") };
+    let tight = fit(&target, &at_rtol(&s.known, TIGHT), &lag, &[]);
+    const { assert!(RTOL > TIGHT, "the workflow's tolerance is the looser one") };
     // the looser fit's parameters simulated as tightly as the other fit's: what is left
     // of the gap between them is where the looser fit stopped, not its simulations
-    let stopped = target.gap(&at_rtol(&loose.params, 1e-6));
+    let stopped = target.gap(&at_rtol(&loose.params, TIGHT));
     assert!(
         (stopped / tight.gap - 1.0).abs() < SAME_VALUE,
         "gap {stopped} against {} ({:?} against {:?})",
