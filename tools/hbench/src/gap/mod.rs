@@ -30,6 +30,7 @@ pub mod resonance;
 mod revision;
 mod search;
 mod selection;
+pub mod signals;
 pub mod variants;
 
 #[cfg(test)]
@@ -86,6 +87,8 @@ pub struct Step {
     /// How well the record pins each parameter the step fitted (`fit::spread`); empty
     /// for a step re-fitted before a re-ask.
     pub spread: Vec<fit::Spread>,
+    /// Each signal's gap before and after the step (`signals`).
+    pub signals: Vec<signals::SignalGap>,
 }
 
 #[derive(Debug, Clone, Serialize)]

@@ -386,6 +386,13 @@ pub fn write(out: &Path, o: &Outcome, model: Option<&Path>) -> Result<(), String
             step.gap_before,
             step.gap_after
         );
+        if !step.signals.is_empty() {
+            let _ = writeln!(
+                md,
+                "\n{}",
+                super::signals::describe(&step.signals, &step.name)
+            );
+        }
         // a step the run's revision re-fitted before asking again had no candidates
         if !step.candidates.is_empty() {
             let _ = writeln!(

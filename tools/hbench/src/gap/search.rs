@@ -9,8 +9,8 @@ use super::effects::{Fitted, StepKind};
 use super::fit::{self, Fit, Target};
 use super::holdout::{self, Validation};
 use super::{
-    advice, effective_samples, evidence, json_values, recalibrate, selection, Scored, Step,
-    MAX_STEPS, MIN_IMPROVEMENT, NOISE_FLOOR_GAP,
+    advice, effective_samples, evidence, json_values, recalibrate, selection, signals, Scored,
+    Step, MAX_STEPS, MIN_IMPROVEMENT, NOISE_FLOOR_GAP,
 };
 
 /// How far each list had grown when a round started: what taking the search back to
@@ -202,6 +202,8 @@ impl<'t> Search<'t> {
             // a step taken without a round of this search's own (`revision`)
             self.mark();
         }
+        let mut step = step;
+        step.signals = signals::per_signal(self.target, self.names, &self.model, &winner.params);
         self.rounds.push(round);
         self.gap = winner.gap;
         self.model = winner.params.clone();
@@ -271,5 +273,6 @@ pub fn step_of(
         validation,
         preference,
         spread: Vec::new(),
+        signals: Vec::new(),
     }
 }

@@ -99,18 +99,7 @@ fn data_and_experiment_files_must_pair() {
 /// delay had its floor, a 41 us `sensor_delay` was added (gap 1.13 -> 1.04).
 #[test]
 fn a_pressure_sensor_lag_is_no_sensor_delay() {
-    let known = section_4_4();
-    let form = FormError {
-        pressure_lag: 0.4e-3,
-        ..FormError::none()
-    };
-    let bench = Truth::new(Simulator::Rust, &known, &[], &[], &form);
-    let s = Setup {
-        without: bench.clone(),
-        bench,
-        known,
-        drawn: vec![],
-    };
+    let s = pressures_lagging(0.4e-3);
     let o = analyse(&s, &[record(&s, Kind::Steps, 1)]);
     let added: Vec<_> = o
         .steps
@@ -119,6 +108,23 @@ fn a_pressure_sensor_lag_is_no_sensor_delay() {
         .map(|st| (&st.name, &st.parameters))
         .collect();
     assert!(added.is_empty(), "added {added:?}");
+}
+
+/// Section 4.4's model as the known one, and as the bench with nothing hidden and no form
+/// error but its pressure sensors lagging `lag` (first order, s).
+pub(crate) fn pressures_lagging(lag: f64) -> Setup {
+    let known = section_4_4();
+    let form = FormError {
+        pressure_lag: lag,
+        ..FormError::none()
+    };
+    let bench = Truth::new(Simulator::Rust, &known, &[], &[], &form);
+    Setup {
+        without: bench.clone(),
+        bench,
+        known,
+        drawn: vec![],
+    }
 }
 
 /// `r` written into `dir` as a user hands it to `hbench gap` (measured.csv,

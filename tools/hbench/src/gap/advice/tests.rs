@@ -255,6 +255,7 @@ fn step(name: &str, scores: &[(&str, f64)]) -> Step {
         preference: super::super::evidence::preference(&ranked),
         validation: None,
         spread: Vec::new(),
+        signals: Vec::new(),
     }
 }
 
