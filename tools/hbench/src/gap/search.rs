@@ -196,13 +196,13 @@ impl<'t> Search<'t> {
     /// parameters are carried into every later fit (brought-along effects stay at their
     /// built-in sizes: re-fitting them too made each later fit 4-parametric with the slow
     /// passage dynamics, 480 CPU s for one record, measured), a recalibrated parameter
-    /// within its recalibration bounds.
-    pub fn take(&mut self, step: Step, round: advice::Round, winner: &Fit) {
+    /// within its recalibration bounds. The step's gap is split by signal here, where
+    /// every step passes (a round's, and a revision's), from the model before it.
+    pub fn take(&mut self, mut step: Step, round: advice::Round, winner: &Fit) {
         if self.marks.len() == self.rounds.len() {
             // a step taken without a round of this search's own (`revision`)
             self.mark();
         }
-        let mut step = step;
         step.signals = signals::per_signal(self.target, self.names, &self.model, &winner.params);
         self.rounds.push(round);
         self.gap = winner.gap;

@@ -78,7 +78,7 @@ pub fn per_signal(
 /// step took some signals away from the data while bringing others closer, what that
 /// may mean. One record's signals go without its name.
 pub fn describe(signals: &[SignalGap], step: &str) -> String {
-    let several = signals.iter().any(|s| s.record != signals[0].record);
+    let several = signals.windows(2).any(|w| w[0].record != w[1].record);
     let label = |s: &SignalGap| {
         if several {
             format!("{} {}", s.record, s.signal)
