@@ -53,25 +53,31 @@ pub fn per_signal(
         return Vec::new();
     };
     let rms = |r: &[f64]| (r.iter().map(|x| x * x).sum::<f64>() / r.len().max(1) as f64).sqrt();
-    let mut out = Vec::new();
+    // the residual's layout, one series per signal of each record, is `Target::blocks`'
+    let labels = target.records.iter().enumerate().flat_map(|(k, record)| {
+        let name = names
+            .get(k)
+            .cloned()
+            .unwrap_or_else(|| format!("record {}", k + 1));
+        record
+            .noise
+            .iter()
+            .map(move |(signal, _)| (name.clone(), *signal))
+    });
     let mut at = 0;
-    for (k, record) in target.records.iter().enumerate() {
-        let n = record.samples();
-        for (signal, _) in &record.noise {
+    labels
+        .zip(target.blocks())
+        .map(|((record, signal), n)| {
             let span = at..at + n;
-            out.push(SignalGap {
-                record: names
-                    .get(k)
-                    .cloned()
-                    .unwrap_or_else(|| format!("record {}", k + 1)),
+            at += n;
+            SignalGap {
+                record,
                 signal,
                 before: rms(&rb.as_slice()[span.clone()]),
                 after: rms(&ra.as_slice()[span]),
-            });
-            at += n;
-        }
-    }
-    out
+            }
+        })
+        .collect()
 }
 
 /// What a person reads of `signals`: each signal's gap before and after, then, when the
@@ -92,12 +98,10 @@ pub fn describe(signals: &[SignalGap], step: &str) -> String {
         .collect();
     let mut text = format!("By signal: {}.", each.join(", "));
     let worse: Vec<String> = signals.iter().filter(|s| s.worse()).map(label).collect();
-    let better: Vec<String> = signals.iter().filter(|s| s.better()).map(label).collect();
+    let better: Vec<&SignalGap> = signals.iter().filter(|s| s.better()).collect();
     if !worse.is_empty() && !better.is_empty() {
-        let pressures_only = signals
-            .iter()
-            .filter(|s| s.better())
-            .all(|s| s.signal.starts_with('P'));
+        let pressures_only = better.iter().all(|s| s.signal.starts_with('P'));
+        let better: Vec<String> = better.into_iter().map(label).collect();
         text.push_str(&format!(
             " It took {} further from the data while it brought {} closer. A change the \
              model lacked would bring every signal it acts on closer: `{step}` may stand in \

@@ -101,9 +101,12 @@ fn a_step_that_trades_the_position_for_the_pressures_is_called_so() {
         "{text}"
     );
     assert!(
-        text.contains("`manifold_volume` may stand in part"),
+        text.contains(
+            "`manifold_volume` may stand in part for something that acts on P1, P2 alone"
+        ),
         "{text}"
     );
+    assert!(text.contains("a lag of the pressure sensors"), "{text}");
     // within the 1 % a step must bring, a signal's rise is the fit's give and take
     let even = [
         gap("steps", "y", 1.758, 1.770),
