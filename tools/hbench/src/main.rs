@@ -232,6 +232,11 @@ enum Command {
         /// analyse that record alone (blind.md counts how often it then is)
         #[arg(long)]
         follow_advice: bool,
+        /// Relative tolerance of the analyses' simulations (`gap --rtol`); the records
+        /// themselves are made at the model's 1e-6. A study run at two tolerances side
+        /// by side shows which answers depend on it
+        #[arg(long, default_value_t = gap::RTOL)]
+        rtol: f64,
         /// Benches that make the data: rust, peer (repeat the option; default rust)
         #[arg(long = "simulator", value_parser = gap::variants::Simulator::parse)]
         simulators: Vec<gap::variants::Simulator>,
@@ -388,6 +393,7 @@ fn main() -> ExitCode {
             pairs,
             joint,
             follow_advice,
+            rtol,
             simulators,
             form_error,
             summarise,
@@ -406,7 +412,10 @@ fn main() -> ExitCode {
                     seeds: first_seed..first_seed + seeds,
                     pairs,
                     joint,
-                    follow_advice,
+                    study: gap::blind::Study {
+                        follow_advice,
+                        rtol,
+                    },
                     simulators: &simulators,
                     form_error,
                     out: &out,

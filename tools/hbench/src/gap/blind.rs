@@ -13,7 +13,6 @@ use hbmodel::effects::Effect;
 use hbmodel::Params;
 use rand::SeedableRng;
 use rand_pcg::Pcg64;
-use serde::Serialize;
 
 use hbmodel::sensors::SensorParams;
 
@@ -24,135 +23,28 @@ use super::variants::{section_4_4, FormError, Simulator};
 use super::MIN_IMPROVEMENT;
 
 mod advised;
+mod case;
+pub use case::Case;
 pub mod rivals;
 mod table;
 #[cfg(test)]
 pub use table::table;
 use table::write;
 
-#[derive(Debug, Clone, Serialize, serde::Deserialize)]
-pub struct Case {
-    pub hidden: Vec<String>,
-    pub experiment: String,
-    pub seed: u64,
-    /// Effects the workflow added, in order.
-    pub named: Vec<String>,
-    /// Parameters re-fitted as recalibration steps (counted apart from the named effects).
-    #[serde(default)]
-    pub recalibrated: Vec<String>,
-    /// The first hidden effect's first parameter: truth and fit (none with nothing
-    /// hidden).
-    pub truth: Option<f64>,
-    pub fitted: Option<f64>,
-    /// The fit's standard error (`fit::spread`; absent in studies run before it was
-    /// recorded).
-    #[serde(default)]
-    pub fitted_std: Option<f64>,
-    /// The fitted parameter the record trades that fit against most (`fit::spread`), with
-    /// their correlation: a record that cannot set the two apart biases both.
-    #[serde(default)]
-    pub fitted_traded: Option<(String, f64)>,
-    pub initial_gap: f64,
-    pub remaining_gap: f64,
-    /// Mean square, over the compared samples, of what the hidden effects change in the
-    /// noise-free signals, in units of the true sensor noise (absent in studies run before
-    /// it was recorded).
-    #[serde(default)]
-    pub visibility: Option<f64>,
-    /// Whether an ideal fit (the truth itself) would pass the workflow's acceptance rules:
-    /// its chi-square drop pays k ln N and it lowers the gap by MIN_IMPROVEMENT.
-    #[serde(default)]
-    pub identifiable: Option<bool>,
-    /// The bench that made the data: "rust" (the model) or "peer" (tools/peer).
-    #[serde(default = "rust_name")]
-    pub simulator: String,
-    /// Whether a model-form error was drawn (then the known model is section 4.4's).
-    #[serde(default)]
-    pub form_error: bool,
-    /// The form error drawn (variants::FormError::to_json), when there is one.
-    #[serde(default)]
-    pub form: Option<serde_json::Value>,
-    /// When the study follows the advice and the first record did not name the hidden
-    /// effect first: the design the workflow recommended, and what a record of it named.
-    #[serde(default)]
-    pub advised: Option<String>,
-    #[serde(default)]
-    pub named_after_advice: Option<Vec<String>>,
-    /// Why the bench could not record the advised design, when it could not.
-    #[serde(default)]
-    pub advice_failed: Option<String>,
-    /// The advice's own words when it recommended no design (none separates its
-    /// question): there is nothing to record, and the case is counted apart.
-    #[serde(default)]
-    pub unadvised: Option<String>,
-    /// The first hidden effect's first parameter as that record's analysis fitted it.
-    #[serde(default)]
-    pub fitted_after_advice: Option<f64>,
-    /// What the question, decided on the advised record, named (`decision::decide`).
-    #[serde(default)]
-    pub decided: Option<String>,
-    /// The candidates the advice asked to decide between, the separation it expected
-    /// (least ln B over their pairs) and the ln B the decision found between its best and
-    /// runner-up (the model as it stands among them).
-    #[serde(default)]
-    pub advice_between: Vec<String>,
-    #[serde(default)]
-    pub expected_ln_bayes: Option<f64>,
-    #[serde(default)]
-    pub found_ln_bayes: Option<f64>,
-    /// The decision in full (`decision::Decision`): each candidate's fit, the held-out
-    /// checks, the verdict.
-    #[serde(default)]
-    pub decision: Option<serde_json::Value>,
-    /// Effects that won a round but were refused on the data they were not fitted on.
-    #[serde(default)]
-    pub refused: Vec<String>,
-    /// A contested step asked again at the end of the run (`revision::Revision`).
-    #[serde(default)]
-    pub revision: Option<serde_json::Value>,
-    /// The hidden effect against its closest rival on the noise-free record
-    /// (`rivals`; single hidden effects only, absent in studies run before it).
-    #[serde(default)]
-    pub rivalry: Option<rivals::Rivalry>,
-    /// CPU seconds the analysis of the case's records took (every thread; the advised
-    /// record's analysis and the rivals' judgement not counted): what a user waits for,
-    /// issue 14 item 7.
-    #[serde(default)]
-    pub cpu_seconds: Option<f64>,
+/// How a study analyses each case: whether it follows the experiment advice, and the
+/// tolerance of the workflow's simulations.
+#[derive(Debug, Clone, Copy)]
+pub struct Study {
+    pub follow_advice: bool,
+    pub rtol: f64,
 }
 
-fn rust_name() -> String {
-    Simulator::Rust.name().into()
-}
-
-impl Case {
-    /// The first effect named is a hidden one (with none hidden: nothing is named).
-    pub fn first_correct(&self) -> bool {
-        match self.named.first() {
-            Some(n) => self.hidden.contains(n),
-            None => self.hidden.is_empty(),
+impl Default for Study {
+    fn default() -> Self {
+        Study {
+            follow_advice: false,
+            rtol: super::RTOL,
         }
-    }
-    /// Every hidden effect is named, and with none hidden nothing is.
-    pub fn all_found(&self) -> bool {
-        self.hidden.iter().all(|h| self.named.contains(h))
-            && (!self.hidden.is_empty() || self.named.is_empty())
-    }
-    /// Identifiable, and told from every rival (`rivals`); None when not judged.
-    pub fn told_from_rivals(&self) -> Option<bool> {
-        let r = self.rivalry.as_ref()?;
-        Some(self.identifiable == Some(true) && r.told())
-    }
-    pub fn magnitude_error(&self) -> Option<f64> {
-        Some((self.fitted? / self.truth? - 1.0).abs())
-    }
-    pub fn shrink(&self) -> f64 {
-        // the gap above the noise floor that the added effects closed
-        let above = |g: f64| (g - 1.0).max(0.0);
-        if above(self.initial_gap) == 0.0 {
-            return 1.0;
-        }
-        1.0 - above(self.remaining_gap) / above(self.initial_gap)
     }
 }
 
@@ -271,7 +163,7 @@ pub fn case_with(
     kinds: &[Kind],
     seed: u64,
 ) -> Result<Case, String> {
-    case_advised(sim, form_error, hidden, kinds, seed, false)
+    case_advised(sim, form_error, hidden, kinds, seed, Study::default())
 }
 
 /// Effects an outcome named, in order: each added effect followed by those it brought
@@ -330,8 +222,9 @@ pub fn case_advised(
     hidden: &[Effect],
     kinds: &[Kind],
     seed: u64,
-    follow: bool,
+    settings: Study,
 ) -> Result<Case, String> {
+    let follow = settings.follow_advice;
     let s = Setup::new(sim, form_error, hidden, seed);
     let (base, drawn) = (&s.known, &s.drawn);
     let mut records = Vec::with_capacity(kinds.len());
@@ -356,6 +249,7 @@ pub fn case_advised(
     // the study scores the naming; the advice only when it is followed
     let settings = super::Settings {
         advise: follow,
+        rtol: settings.rtol,
         ..super::Settings::default()
     };
     let cpu = crate::bench::cpu::process_seconds();
@@ -421,6 +315,7 @@ pub fn case_advised(
             .and_then(|r| serde_json::to_value(r).ok()),
         rivalry: None,
         cpu_seconds: Some(cpu_seconds),
+        rtol: Some(settings.rtol),
     };
     if follow && !case.first_correct() {
         advised::follow(
@@ -495,8 +390,9 @@ pub struct Options<'a> {
     /// One case per effect and seed with every experiment's record analysed jointly,
     /// instead of one case per experiment.
     pub joint: bool,
-    /// Put the experiment advice to the test on the cases not named first.
-    pub follow_advice: bool,
+    /// Whether the experiment advice is put to the test on the cases not named first,
+    /// and the simulations' tolerance.
+    pub study: Study,
     /// Benches (empty: the Rust model).
     pub simulators: &'a [Simulator],
     pub form_error: bool,
@@ -510,6 +406,7 @@ pub fn main(o: &Options) -> Result<(), String> {
     } else {
         o.simulators.to_vec()
     };
+    super::check_rtol(o.study.rtol)?;
     let form_error = o.form_error;
     let names: Vec<String> = if o.effects.is_empty() {
         let mut n: Vec<String> = super::effects::names()
@@ -573,7 +470,7 @@ pub fn main(o: &Options) -> Result<(), String> {
             kinds.iter().map(|k| k.name()).collect::<Vec<_>>().join("+")
         );
         bar.set_message(label.clone());
-        match case_advised(sim, form_error, &set, &kinds, seed, o.follow_advice) {
+        match case_advised(sim, form_error, &set, &kinds, seed, o.study) {
             Ok(mut c) => {
                 c.rivalry = judged(&c, &label);
                 cases.push(c);

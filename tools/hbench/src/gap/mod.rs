@@ -217,6 +217,19 @@ pub struct Outcome {
 /// at 21 % less CPU (docs/gap.md, session 23).
 pub const RTOL: f64 = 1e-5;
 
+/// `--rtol` within the registry's bounds of `solver.rtol`.
+pub fn check_rtol(rtol: f64) -> Result<(), String> {
+    let spec = hbmodel::params::param("solver.rtol").expect("registered");
+    let (lo, hi) = (spec.min, spec.max);
+    if (lo..=hi).contains(&rtol) {
+        Ok(())
+    } else {
+        Err(format!(
+            "--rtol {rtol}: a tolerance in [{lo}, {hi}] is expected"
+        ))
+    }
+}
+
 /// `p` to be simulated at the relative tolerance `rtol`.
 pub fn at_rtol(p: &Params, rtol: f64) -> Params {
     let mut q = p.clone();
@@ -477,13 +490,7 @@ pub fn main(
         rtol,
         ..
     } = settings;
-    let spec = hbmodel::params::param("solver.rtol").expect("registered");
-    let (lo, hi) = (spec.min, spec.max);
-    if !(lo..=hi).contains(&rtol) {
-        return Err(format!(
-            "--rtol {rtol}: a tolerance in [{lo}, {hi}] is expected"
-        ));
-    }
+    check_rtol(rtol)?;
     if !(0.0..1.0).contains(&recalibrate_within) {
         return Err(format!(
             "--recalibrate-within {recalibrate_within}: a fraction in [0, 1) is expected"

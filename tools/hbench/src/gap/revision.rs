@@ -81,6 +81,10 @@ pub struct Revision {
     /// The one among them the run had not re-fitted, added because the question then
     /// fitted better for its price (`widened`: runs that ended far above the floor).
     pub widened_with: Option<String>,
+    /// Recalibrations the run made that the question held at the model's value instead:
+    /// every candidate's fit ended on a bound of each (`pinned_by_all`).
+    #[serde(skip_serializing_if = "Vec::is_empty")]
+    pub held: Vec<String>,
     pub decision: Decision,
     pub original: Path,
     /// The run continued from the rival, when the rival won.
@@ -99,6 +103,42 @@ pub struct Reasked<'t> {
     pub kept: Option<Search<'t>>,
 }
 
+/// An added effect whose own first parameter moved by more than this fraction between
+/// its step and the run's end was taken on evidence the run's later steps took over, and
+/// is asked again like a contested one (its rival must have paid its price). The
+/// fraction is the 25 % within which issue 14 asks a named effect's size. A payload
+/// hidden with form error (Rust steps, seed 3, a 0.25 ms LVDT lag) was taken for the
+/// oil mass at step 1 (inertia scale 0.861, gap 1.97 against the payload's 2.13, ln B
+/// 39); the run then re-fitted SV1's rated flow and null leakage, the viscous friction
+/// and the moving mass, and ended at gap 1.07 with the oil mass at 0.525, 39 % down. Asked
+/// again from the known model with the first three beside each, the payload won by ln B
+/// 117 (gap 1.24 against 1.37, 2.93 kg against the truth's 2.35; measured, session 26).
+pub const MOVED_BY: f64 = 0.25;
+
+/// How far the step `s` (index `k` of `run`), an added effect, saw its own first
+/// parameter move by the run's end: (value at the step, value at the end), when the
+/// relative change exceeds MOVED_BY.
+fn moved(run: &Search, k: usize, s: &Step) -> Option<(&'static str, f64, f64)> {
+    if s.kind != super::effects::StepKind::Add {
+        return None;
+    }
+    let path = run
+        .rounds
+        .get(k)?
+        .fits
+        .iter()
+        .find(|(_, f)| f.name == s.name)?
+        .1
+        .candidate
+        .fitted
+        .first()?
+        .path;
+    let at_step = s.parameters.get(path)?.as_f64()?;
+    let at_end = hbmodel::params::param(path)?.get(&run.model);
+    let change = (at_end / at_step - 1.0).abs();
+    (change > MOVED_BY).then_some((path, at_step, at_end))
+}
+
 /// The step a run's end asks again (see `question`).
 struct Question<'t> {
     /// Index of the step.
@@ -112,9 +152,11 @@ struct Question<'t> {
     later: Vec<&'static str>,
 }
 
-/// The earliest step of the ended run `run` worth asking again: contested, or (when the
-/// run ended above FAR_ABOVE_FLOOR_GAP) any step whose rival paid its price; its choice
-/// and rival fit no parameter in common, and the run recalibrated something after it.
+/// The earliest step of the ended run `run` worth asking again: contested, an added
+/// effect whose size the run's later steps moved by more than MOVED_BY (`moved`), or
+/// (when the run ended above FAR_ABOVE_FLOOR_GAP) any step; in the last two its rival
+/// must have paid its price. Its choice and rival fit no parameter in common, and the run
+/// recalibrated something after it.
 fn question<'t>(run: &Search<'t>) -> Option<Question<'t>> {
     // the parameters a candidate of step k's round fitted
     let fitted = |k: usize, name: &str| -> Vec<&'static str> {
@@ -131,7 +173,12 @@ fn question<'t>(run: &Search<'t>) -> Option<Question<'t>> {
     let far = run.gap > FAR_ABOVE_FLOOR_GAP;
     run.steps.iter().enumerate().find_map(|(k, s)| {
         let contested = advice::contested(s);
-        let rival = if far { advice::rival(s) } else { contested }?;
+        let shifted = moved(run, k, s);
+        let rival = if far || shifted.is_some() {
+            advice::rival(s)
+        } else {
+            contested
+        }?;
         // a choice and a rival that fit a parameter in common are one physics within two
         // bounds (SV2's flow and null re-fitted, or `valve_asymmetry`): asked again they
         // stayed within ln B 0.2 on each of the 9 peer runs that had them first (steps,
@@ -154,6 +201,12 @@ fn question<'t>(run: &Search<'t>) -> Option<Question<'t>> {
         }
         let why = if contested.is_some() {
             "contested".to_string()
+        } else if let Some((path, at_step, at_end)) = shifted {
+            format!(
+                "taken clearly, but the run's later steps moved its `{path}` from {} to {}: they took over part of what it explained",
+                value(at_step),
+                value(at_end)
+            )
         } else {
             format!(
                 "taken clearly, but the run ended at gap {:.2}, far above the noise floor",
@@ -202,16 +255,25 @@ pub fn reask<'t>(run: &Search<'t>, within: f64, progress: bool) -> Option<Reaske
                 .as_ref()
                 .is_some_and(|p| p.best == rival && p.ln_bayes_factor >= CLEAR_LN_BAYES)
     };
-    let mut asked = ask(&recalibrate)?;
-    let mut widened_with = None;
     let mut recalibrate = recalibrate;
+    let mut asked = ask(&recalibrate)?;
+    let mut held = Vec::new();
+    while asked.won.is_none() {
+        let Some(p) = pinned_by_all(&asked, &recalibrate) else {
+            break;
+        };
+        recalibrate.retain(|r| *r != p);
+        held.push(p);
+        asked = ask(&recalibrate)?;
+    }
+    let mut widened_with = None;
     if run.gap > FAR_ABOVE_FLOOR_GAP {
         let asked_for = recalibrate.len();
         (recalibrate, asked) = widened(
             from,
             &between,
             (recalibrate, asked),
-            within,
+            (within, &held),
             &clear_for,
             &ask,
         );
@@ -226,6 +288,7 @@ pub fn reask<'t>(run: &Search<'t>, within: f64, progress: bool) -> Option<Reaske
         reason: why,
         recalibrate,
         widened_with,
+        held,
         decision: d.clone(),
         original,
         continued: None,
@@ -240,7 +303,7 @@ pub fn reask<'t>(run: &Search<'t>, within: f64, progress: bool) -> Option<Reaske
             report.reason,
             between[0],
             between[1],
-            refitted(&report.recalibrate, report.widened_with.as_deref()),
+            refitted(&report),
             d.verdict
         );
         return Some(Reasked { report, kept: None });
@@ -266,7 +329,7 @@ pub fn reask<'t>(run: &Search<'t>, within: f64, progress: bool) -> Option<Reaske
         "At the end of the run, step {} ({}) was asked again from the model before it, with {} re-fitted beside each candidate: `{}` over `{}` (ln B {:.1}). Continued from `{}`, the run ends at gap {:.2} against {:.2} (ln B {:.1} {}): {}",
         k + 1,
         report.reason,
-        refitted(&report.recalibrate, report.widened_with.as_deref()),
+        refitted(&report),
         rival,
         between[0],
         d.preference.as_ref().map_or(0.0, |p| p.ln_bayes_factor),
@@ -300,6 +363,9 @@ pub fn reask<'t>(run: &Search<'t>, within: f64, progress: bool) -> Option<Reaske
 /// the payload fitted to 1.76 (3.06 kg, truth 3.18), which neither parameter alone
 /// reaches: the rated flow alone changed the gap by under 0.01 (measured, session 13).
 ///
+/// A recalibration the question held at the model's value (`pinned_by_all`) is not
+/// offered again.
+///
 /// Widened only when the plain question leaves the run standing (`clear` false): where
 /// it already names the rival clearly, a wider set can move the fit to another basin.
 /// The seed-1 manifold inertia, asked again with the mass beside it, continued to a run
@@ -309,7 +375,7 @@ fn widened(
     from: &hbmodel::Params,
     between: &[String; 2],
     (recalibrate, asked): (Vec<String>, Asked),
-    within: f64,
+    (within, held): (f64, &[String]),
     clear: &dyn Fn(&Asked) -> bool,
     ask: &dyn Fn(&[String]) -> Option<Asked>,
 ) -> (Vec<String>, Asked) {
@@ -321,7 +387,7 @@ fn widened(
     let extra: Vec<&str> = decision::single_recalibrations(from, within);
     let extra: Vec<String> = decision::open(from, within, &extra, between)
         .into_iter()
-        .filter(|p| !recalibrate.contains(p))
+        .filter(|p| !recalibrate.contains(p) && !held.contains(p))
         .collect();
     let mut best = (0.0, recalibrate.clone(), asked);
     for p in extra {
@@ -335,13 +401,42 @@ fn widened(
     (best.1, best.2)
 }
 
-/// The parameters re-fitted, in words.
-fn refitted(paths: &[String], widened_with: Option<&str>) -> String {
-    let set = if paths.is_empty() {
+/// A parameter's value for a person: 4 decimals, or 4 digits with an exponent when it is
+/// far from 1 (a leakage coefficient, 1e-12).
+fn value(x: f64) -> String {
+    if (1e-2..1e5).contains(&x.abs()) {
+        format!("{x:.4}")
+    } else {
+        format!("{x:.3e}")
+    }
+}
+
+/// The recalibration of the question that every candidate's fit ended on a bound of,
+/// if there is one: then no candidate is a model the data support (`fit::Fit::on_bound`),
+/// and the bound, not the data, decided the comparison. Such a recalibration stands in
+/// for something outside the question (a sensor's lag read as softer oil, a payload read
+/// as a heavier piston); the question is asked again with it held at the model's value.
+fn pinned_by_all(asked: &Asked, recalibrate: &[String]) -> Option<String> {
+    let mut bounds = asked.decision.candidates.iter().map(|c| c.on_bound);
+    let (path, _) = bounds.next()??;
+    (bounds.all(|b| b.is_some_and(|(p, _)| p == path)) && recalibrate.iter().any(|r| r == path))
+        .then(|| path.to_string())
+}
+
+/// The parameters the question re-fitted, in words, with those it held.
+fn refitted(r: &Revision) -> String {
+    let (paths, widened_with) = (&r.recalibrate, r.widened_with.as_deref());
+    let mut set = if paths.is_empty() {
         "nothing".into()
     } else {
         format!("`{}`", paths.join("`, `"))
     };
+    if !r.held.is_empty() {
+        set += &format!(
+            " (`{}`, which the run re-fitted, held at the model's value: every candidate fitted it to a bound of its recalibration)",
+            r.held.join("`, `")
+        );
+    }
     match widened_with {
         Some(p) => format!(
             "{set} (`{p}`, which the run had not re-fitted, added: the run ended far above the noise floor, and with it the question fitted better for its price)"

@@ -107,6 +107,7 @@ pub fn table(cases: &[Case]) -> String {
     row(&mut md, "**all**", cases.iter().collect());
     md.push_str(&rivals_line(cases));
     md.push_str(&cpu_line(cases));
+    md.push_str(&rtol_line(cases));
     md.push_str(&advice_line(cases));
     md.push_str(&revision_line(cases));
     md.push_str(&spread_line(cases));
@@ -321,6 +322,32 @@ fn cpu_line(cases: &[Case]) -> String {
     )
 }
 
+/// The tolerances the cases' analyses simulated at (`blind --rtol`), with how many
+/// cases each: a study merged from runs at two tolerances says so. Empty when no case
+/// recorded it.
+fn rtol_line(cases: &[Case]) -> String {
+    let mut tols: Vec<f64> = cases.iter().filter_map(|c| c.rtol).collect();
+    if tols.is_empty() {
+        return String::new();
+    }
+    tols.sort_by(f64::total_cmp);
+    tols.dedup();
+    let per: Vec<String> = tols
+        .iter()
+        .map(|t| {
+            let n = cases.iter().filter(|c| c.rtol == Some(*t)).count();
+            format!("rtol {t:e} ({n} cases)")
+        })
+        .collect();
+    let unrecorded = cases.iter().filter(|c| c.rtol.is_none()).count();
+    let before = if unrecorded > 0 {
+        format!("; not recorded: {unrecorded} cases, run before it was")
+    } else {
+        String::new()
+    };
+    format!("\nThe analyses simulated at {}{before}.\n", per.join(", "))
+}
+
 /// A Bayes factor in a table line.
 fn ln_b(x: Option<f64>) -> String {
     x.map_or("-".into(), |v| format!("{v:.1}"))
@@ -437,4 +464,39 @@ fn label(c: &Case) -> String {
         c.hidden.join("+")
     };
     format!("{hidden} ({}, {})", c.experiment, c.simulator)
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    /// A case as blind.json keeps it, with only the fields every study writes.
+    fn case(rtol: Option<f64>) -> Case {
+        let mut v = serde_json::json!({
+            "hidden": ["payload"], "experiment": "steps", "seed": 1, "named": ["payload"],
+            "truth": 3.0, "fitted": 3.1, "initial_gap": 9.0, "remaining_gap": 1.0,
+        });
+        if let Some(t) = rtol {
+            v["rtol"] = t.into();
+        }
+        serde_json::from_value(v).expect("a case")
+    }
+
+    /// A study merged from runs at two tolerances, and from one run before the
+    /// tolerance was recorded, says how many cases each had.
+    #[test]
+    fn a_study_says_the_tolerances_its_analyses_ran_at() {
+        assert_eq!(rtol_line(&[case(None)]), "");
+        let line = rtol_line(&[
+            case(Some(1e-6)),
+            case(Some(1e-5)),
+            case(Some(1e-5)),
+            case(None),
+        ]);
+        assert_eq!(
+            line,
+            "\nThe analyses simulated at rtol 1e-6 (1 cases), rtol 1e-5 (2 cases); not recorded: 1 cases, run before it was.\n"
+        );
+        assert!(table(&[case(Some(1e-6))]).contains("rtol 1e-6 (1 cases)"));
+    }
 }

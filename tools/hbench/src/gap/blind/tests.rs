@@ -82,7 +82,10 @@ fn air_on_steps_is_told_from_a_softer_oil_by_the_advised_record() {
         &[Effect::EntrainedAir],
         &[Kind::Steps],
         1,
-        true,
+        Study {
+            follow_advice: true,
+            ..Study::default()
+        },
     )
     .unwrap();
     if c.first_correct() {
@@ -125,4 +128,28 @@ fn two_hidden_effects_are_both_found() {
     let c = case(&[Effect::SensorDelay, Effect::DryFriction], Kind::Steps, 3).unwrap();
     assert!(c.all_found(), "{c:?}");
     assert!(c.shrink() >= 0.7, "{c:?}");
+}
+
+/// A tolerance outside the registry's bounds of `solver.rtol` stops a study before any
+/// case is simulated, and names the option.
+#[test]
+fn a_study_at_an_impossible_tolerance_is_refused() {
+    let out = std::env::temp_dir().join("hbench-blind-rtol-refused");
+    let err = main(&Options {
+        effects: &["none".to_string()],
+        kinds: &[Kind::Steps],
+        seeds: 1..2,
+        pairs: false,
+        joint: false,
+        study: Study {
+            follow_advice: false,
+            rtol: 1.0,
+        },
+        simulators: &[],
+        form_error: true,
+        out: &out,
+    })
+    .unwrap_err();
+    assert!(err.starts_with("--rtol 1:"), "{err}");
+    assert!(!out.exists(), "nothing written");
 }
