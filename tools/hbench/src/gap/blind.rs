@@ -287,6 +287,9 @@ pub fn case_advised(
             .collect(),
         truth: value,
         fitted,
+        fitted_at_end: fitted
+            .and_then(|_| hbmodel::params::param(path))
+            .map(|p| p.get(&outcome.model)),
         fitted_std: spread.as_ref().and_then(|x| x.std),
         fitted_traded: spread
             .and_then(|x| x.most_correlated)

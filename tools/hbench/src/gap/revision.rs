@@ -425,23 +425,27 @@ fn pinned_by_all(asked: &Asked, recalibrate: &[String]) -> Option<String> {
 
 /// The parameters the question re-fitted, in words, with those it held.
 fn refitted(r: &Revision) -> String {
-    let (paths, widened_with) = (&r.recalibrate, r.widened_with.as_deref());
-    let mut set = if paths.is_empty() {
+    let set = if r.recalibrate.is_empty() {
         "nothing".into()
     } else {
-        format!("`{}`", paths.join("`, `"))
+        format!("`{}`", r.recalibrate.join("`, `"))
     };
+    let mut notes = Vec::new();
     if !r.held.is_empty() {
-        set += &format!(
-            " (`{}`, which the run re-fitted, held at the model's value: every candidate fitted it to a bound of its recalibration)",
+        notes.push(format!(
+            "`{}`, which the run re-fitted, held at the model's value: every candidate fitted it to a bound of its recalibration",
             r.held.join("`, `")
-        );
+        ));
     }
-    match widened_with {
-        Some(p) => format!(
-            "{set} (`{p}`, which the run had not re-fitted, added: the run ended far above the noise floor, and with it the question fitted better for its price)"
-        ),
-        None => set,
+    if let Some(p) = &r.widened_with {
+        notes.push(format!(
+            "`{p}`, which the run had not re-fitted, added: the run ended far above the noise floor, and with it the question fitted better for its price"
+        ));
+    }
+    if notes.is_empty() {
+        set
+    } else {
+        format!("{set} ({})", notes.join("; "))
     }
 }
 

@@ -17,9 +17,14 @@ pub struct Case {
     #[serde(default)]
     pub recalibrated: Vec<String>,
     /// The first hidden effect's first parameter: truth and fit (none with nothing
-    /// hidden).
+    /// hidden), as the step that named the effect fitted it.
     pub truth: Option<f64>,
     pub fitted: Option<f64>,
+    /// The same parameter in the run's final model, the fitted_model.toml a user gets
+    /// (later steps re-fit it beside theirs); with `fitted` only (absent in studies run
+    /// before it was recorded).
+    #[serde(default)]
+    pub fitted_at_end: Option<f64>,
     /// The fit's standard error (`fit::spread`; absent in studies run before it was
     /// recorded).
     #[serde(default)]
@@ -125,6 +130,10 @@ impl Case {
     }
     pub fn magnitude_error(&self) -> Option<f64> {
         Some((self.fitted? / self.truth? - 1.0).abs())
+    }
+    /// `magnitude_error` of the final model's value (`fitted_at_end`).
+    pub fn magnitude_error_at_end(&self) -> Option<f64> {
+        Some((self.fitted_at_end? / self.truth? - 1.0).abs())
     }
     pub fn shrink(&self) -> f64 {
         // the gap above the noise floor that the added effects closed

@@ -108,6 +108,7 @@ pub fn table(cases: &[Case]) -> String {
     md.push_str(&rivals_line(cases));
     md.push_str(&cpu_line(cases));
     md.push_str(&rtol_line(cases));
+    md.push_str(&end_line(cases));
     md.push_str(&advice_line(cases));
     md.push_str(&revision_line(cases));
     md.push_str(&spread_line(cases));
@@ -146,9 +147,9 @@ fn spread_line(cases: &[Case]) -> String {
     line
 }
 
-/// The runs whose step was asked again at their end (`revision`: contested, or taken
-/// clearly by a run that ended far above the floor), and what came of it (empty when
-/// none was).
+/// The runs whose step was asked again at their end (`revision`: contested, moved by the
+/// run, or taken clearly by a run that ended far above the floor), and what came of it
+/// (empty when none was).
 fn revision_line(cases: &[Case]) -> String {
     let asked: Vec<(&Case, &serde_json::Value)> = cases
         .iter()
@@ -162,8 +163,9 @@ fn revision_line(cases: &[Case]) -> String {
         .filter(|(_, r)| r["revised"].as_bool() == Some(true))
         .count();
     let mut line = format!(
-        "\nAsked again at the end of the run (a contested step, or any step when the run ended \
-         far above the noise floor, with the later recalibrations re-fitted): {} runs, continued from the rival and kept in {kept}.\n",
+        "\nAsked again at the end of the run (a contested step, an added effect whose size the \
+         run moved by more than 25 %, or any step when the run ended far above the noise floor, \
+         with the later recalibrations re-fitted): {} runs, continued from the rival and kept in {kept}.\n",
         asked.len()
     );
     let added = |p: &serde_json::Value| {
@@ -348,6 +350,29 @@ fn rtol_line(cases: &[Case]) -> String {
     format!("\nThe analyses simulated at {}{before}.\n", per.join(", "))
 }
 
+/// The named effects' first parameter at the run's end (`fitted_at_end`, the model a
+/// user gets) beside the step's value the table reads, over the identifiable cases that
+/// recorded both; empty when none did.
+fn end_line(cases: &[Case]) -> String {
+    let both: Vec<&Case> = cases
+        .iter()
+        .filter(|c| c.identifiable == Some(true) && c.fitted_at_end.is_some())
+        .collect();
+    if both.is_empty() {
+        return String::new();
+    }
+    let within = |e: Option<f64>| e.is_some_and(|e| e <= 0.25);
+    let at_step = both.iter().filter(|c| within(c.magnitude_error())).count();
+    let at_end = both
+        .iter()
+        .filter(|c| within(c.magnitude_error_at_end()))
+        .count();
+    format!(
+        "\nThe named effect's first parameter within 25 % of the truth, on the {} identifiable cases that named and recorded it: {at_step} at the step that named it (the table's figure), {at_end} at the run's end (fitted_model.toml).\n",
+        both.len()
+    )
+}
+
 /// A Bayes factor in a table line.
 fn ln_b(x: Option<f64>) -> String {
     x.map_or("-".into(), |v| format!("{v:.1}"))
@@ -498,5 +523,29 @@ mod tests {
             "\nThe analyses simulated at rtol 1e-6 (1 cases), rtol 1e-5 (2 cases); not recorded: 1 cases, run before it was.\n"
         );
         assert!(table(&[case(Some(1e-6))]).contains("rtol 1e-6 (1 cases)"));
+    }
+
+    /// The end's value is counted beside the step's on identifiable cases that recorded
+    /// it: a fit the run's later steps brought within 25 % counts at the end only.
+    #[test]
+    fn a_study_counts_the_fit_at_the_runs_end_beside_the_steps() {
+        let at = |end: Option<f64>, identifiable: bool| {
+            let mut c = case(None);
+            c.fitted = Some(3.9);
+            c.fitted_at_end = end;
+            c.identifiable = Some(identifiable);
+            c
+        };
+        assert_eq!(end_line(&[at(None, true)]), "");
+        let line = end_line(&[
+            at(Some(3.1), true),
+            at(Some(3.9), true),
+            at(Some(3.1), false),
+            at(None, true),
+        ]);
+        assert!(
+            line.contains("on the 2 identifiable cases that named and recorded it: 0 at the step that named it (the table's figure), 1 at the run's end"),
+            "{line}"
+        );
     }
 }
