@@ -9,15 +9,18 @@
 //! 921 (gap 1.76), measured in session 9.
 //!
 //! So at the end of a run the earliest contested step (`advice::contested`) whose choice
-//! and rival fit no parameter in common is asked again between the two (any step whose
-//! rival paid its price, when the run ended far above the noise floor,
+//! and rival fit no parameter in common is asked again between the two (also an added
+//! effect whose size the run's later steps moved by more than `MOVED_BY`, and any step
+//! whose rival paid its price when the run ended far above the noise floor,
 //! `FAR_ABOVE_FLOOR_GAP`), from the model
 //! before it, with every parameter the run re-fitted later (and those carried into the
 //! step) re-fitted beside them. When the rival wins clearly (ln B 3 over the runner-up,
 //! the model as it stands among them) and passes the held-out check, the run is
 //! continued from that step with the rival; the continued run is kept when the
 //! information criterion prefers its end to the original's (`evidence::score` between
-//! the two final residuals, each parameter of the difference paying its price). When
+//! the two final residuals, each parameter of the difference paying its price). A
+//! recalibration every candidate's fit ends on a bound of is held at the model's value
+//! and the question asked again (`pinned_by_all`). When
 //! that question leaves a run that ended far above the floor standing, it is asked with
 //! one more recalibration beside the candidates, if that pays its price (`widened`).
 //! Whatever the answer, the report says so.
