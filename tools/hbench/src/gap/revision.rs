@@ -118,24 +118,15 @@ pub struct Reasked<'t> {
 /// 117 (gap 1.24 against 1.37, 2.93 kg against the truth's 2.35; measured, session 26).
 pub const MOVED_BY: f64 = 0.25;
 
-/// How far the step `s` (index `k` of `run`), an added effect, saw its own first
-/// parameter move by the run's end: (value at the step, value at the end), when the
-/// relative change exceeds MOVED_BY.
-fn moved(run: &Search, k: usize, s: &Step) -> Option<(&'static str, f64, f64)> {
+/// How far the step `s` of `run`, an added effect whose own first fitted parameter is
+/// `own` (from its round, `question`'s `fitted`), saw that parameter move by the run's
+/// end: (path, value at the step, value at the end), when the relative change exceeds
+/// MOVED_BY.
+fn moved(run: &Search, s: &Step, own: Option<&'static str>) -> Option<(&'static str, f64, f64)> {
     if s.kind != super::effects::StepKind::Add {
         return None;
     }
-    let path = run
-        .rounds
-        .get(k)?
-        .fits
-        .iter()
-        .find(|(_, f)| f.name == s.name)?
-        .1
-        .candidate
-        .fitted
-        .first()?
-        .path;
+    let path = own?;
     let at_step = s.parameters.get(path)?.as_f64()?;
     let at_end = hbmodel::params::param(path)?.get(&run.model);
     let change = (at_end / at_step - 1.0).abs();
@@ -176,7 +167,8 @@ fn question<'t>(run: &Search<'t>) -> Option<Question<'t>> {
     let far = run.gap > FAR_ABOVE_FLOOR_GAP;
     run.steps.iter().enumerate().find_map(|(k, s)| {
         let contested = advice::contested(s);
-        let shifted = moved(run, k, s);
+        let mine = fitted(k, &s.name);
+        let shifted = moved(run, s, mine.first().copied());
         let rival = if far || shifted.is_some() {
             advice::rival(s)
         } else {
@@ -186,7 +178,6 @@ fn question<'t>(run: &Search<'t>) -> Option<Question<'t>> {
         // bounds (SV2's flow and null re-fitted, or `valve_asymmetry`): asked again they
         // stayed within ln B 0.2 on each of the 9 peer runs that had them first (steps,
         // seed 1, form error, measured), and the later question went unasked
-        let mine = fitted(k, &s.name);
         if fitted(k, rival).iter().any(|p| mine.contains(p)) {
             return None;
         }
