@@ -24,7 +24,7 @@ use serde::Serialize;
 use super::advice::AS_IS;
 use super::effects::{self, Candidate, Fitted, StepKind};
 use super::evidence::{self, Preference};
-use super::fit::{fit, Fit, Target};
+use super::fit::{fit, fit_warm, Fit, Target};
 use super::holdout::{Judge, Validation};
 use super::{effective_samples, recalibrate, selection, target_of, Record, Scored};
 
@@ -161,6 +161,17 @@ impl Asked {
             .fold(f64::INFINITY, f64::min)
     }
 
+    /// The least chi-square among the fits that could be taken: off every narrow bound
+    /// of their fit (`fit::Fit::on_bound`); None when every fit is on one.
+    pub fn best_eligible_chi2(&self) -> Option<f64> {
+        self.fits
+            .iter()
+            .zip(&self.decision.candidates)
+            .filter(|(_, c)| c.on_bound.is_none())
+            .map(|(f, _)| f.chi2)
+            .reduce(f64::min)
+    }
+
     /// The model the decision leaves: the winner's, or the re-fitted question's model.
     pub fn decided(&self, question: &Params) -> Params {
         match (self.won, &self.baseline) {
@@ -190,24 +201,26 @@ pub fn decide(
         model,
         between,
         recalibrate,
-        &target,
-        &names,
-        within,
-        progress,
+        (&target, &names),
+        (within, progress),
+        None,
     )?;
     let decided = asked.decided(model);
     Ok((asked.decision, decided))
 }
 
-/// `decide` on a fitting target whose records are called `record_names`.
+/// `decide` on a fitting target whose records are called `record_names`. With `warm`, a
+/// question asked before between the same candidates on the same target with other
+/// recalibrations, each fit is also started from that question's fit of the same
+/// candidate (`fit::fit_warm`), so that the answer does not depend on the path a cold
+/// start took.
 pub fn ask(
     model: &Params,
     between: &[String],
     recalibrate: &[String],
-    target: &Target,
-    record_names: &[String],
-    within: f64,
-    progress: bool,
+    (target, record_names): (&Target, &[String]),
+    (within, progress): (f64, bool),
+    warm: Option<&Asked>,
 ) -> Result<Asked, String> {
     let mut names: Vec<&str> = Vec::new();
     for n in between.iter().map(String::as_str).filter(|n| *n != AS_IS) {
@@ -239,7 +252,10 @@ pub fn ask(
             signature: "the known model's recalibrations",
             switches_on,
         };
-        fit(target, model, &refit, &[])
+        match warm.and_then(|w| w.baseline.as_ref()) {
+            Some(w) => fit_warm(target, model, &refit, &[], &w.params),
+            None => fit(target, model, &refit, &[]),
+        }
     });
     let model = baseline.as_ref().map_or(model, |b| &b.params);
     let gap = target.gap(model);
@@ -249,7 +265,11 @@ pub fn ask(
     let (effective, tau) = effective_samples(target, model);
     let bar = crate::parallel::bar(candidates.len(), "deciding", progress);
     let fits = crate::parallel::map(&candidates, &bar, Candidate::name, |c| {
-        fit(target, model, c, &carried)
+        let before = warm.and_then(|w| w.fits.iter().find(|f| f.name == c.name()));
+        match before {
+            Some(w) => fit_warm(target, model, c, &carried, &w.params),
+            None => fit(target, model, c, &carried),
+        }
     });
     let chi2 = gap * gap * n;
     let scored: Vec<Scored> = fits

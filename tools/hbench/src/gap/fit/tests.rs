@@ -73,7 +73,8 @@ fn the_spread_pins_a_delay_and_finds_dry_and_viscous_friction_traded_on_steps() 
 }
 
 /// A fit stopped by a bound, of its own parameter or of one carried with it, is told;
-/// one inside its bounds is not.
+/// one inside its bounds is not, nor one at a physical bound, unless the effect fitted to
+/// its absence switched others on.
 #[test]
 fn a_fit_that_ended_on_a_bound_is_told() {
     use crate::gap::effects::candidate;
@@ -110,6 +111,14 @@ fn a_fit_that_ended_on_a_bound_is_told() {
     let none = Coordinate::new(&air.fitted[0]).lo;
     let at_none = ended_at(&air, vec![], vec![("fluid.air_fraction", none)]);
     assert_eq!(at_none.on_bound(), None);
+    // but an effect that switches others on, fitted to its absence, is theirs: the
+    // manifold's losses at scale 0 are its passages without losses
+    let losses = candidate(Effect::ManifoldLosses).expect("a candidate");
+    let at = |scale: f64| ended_at(&losses, vec![], vec![("manifold.loss_scale", scale)]);
+    assert_eq!(at(0.0).on_bound(), Some(("manifold.loss_scale", 0.0)));
+    assert_eq!(at(1.0).on_bound(), None);
+    // at its physical ceiling it is no absence
+    assert_eq!(at(10.0).on_bound(), None);
 }
 
 /// The spread reports the value the fit ended at, even nearer a bound than the clamp of
