@@ -412,9 +412,10 @@ fn main() -> ExitCode {
                     seeds: first_seed..first_seed + seeds,
                     pairs,
                     joint,
-                    study: gap::blind::Study {
-                        follow_advice,
+                    study: gap::Settings {
+                        advise: follow_advice,
                         rtol,
+                        ..gap::blind::study()
                     },
                     simulators: &simulators,
                     form_error,

@@ -31,20 +31,13 @@ mod table;
 pub use table::table;
 use table::write;
 
-/// How a study analyses each case: whether it follows the experiment advice, and the
-/// tolerance of the workflow's simulations.
-#[derive(Debug, Clone, Copy)]
-pub struct Study {
-    pub follow_advice: bool,
-    pub rtol: f64,
-}
-
-impl Default for Study {
-    fn default() -> Self {
-        Study {
-            follow_advice: false,
-            rtol: super::RTOL,
-        }
+/// How a blind study analyses each case: the workflow's settings, without the advice
+/// unless the study follows it (`Settings::advise`; the study scores the naming) and
+/// without progress bars (the study has its own).
+pub fn study() -> super::Settings {
+    super::Settings {
+        advise: false,
+        ..super::Settings::default()
     }
 }
 
@@ -163,7 +156,7 @@ pub fn case_with(
     kinds: &[Kind],
     seed: u64,
 ) -> Result<Case, String> {
-    case_advised(sim, form_error, hidden, kinds, seed, Study::default())
+    case_advised(sim, form_error, hidden, kinds, seed, study())
 }
 
 /// Effects an outcome named, in order: each added effect followed by those it brought
@@ -222,9 +215,9 @@ pub fn case_advised(
     hidden: &[Effect],
     kinds: &[Kind],
     seed: u64,
-    settings: Study,
+    settings: super::Settings,
 ) -> Result<Case, String> {
-    let follow = settings.follow_advice;
+    let follow = settings.advise;
     let s = Setup::new(sim, form_error, hidden, seed);
     let (base, drawn) = (&s.known, &s.drawn);
     let mut records = Vec::with_capacity(kinds.len());
@@ -246,12 +239,6 @@ pub fn case_advised(
         visible = visible.max(v);
         identifiable |= ok;
     }
-    // the study scores the naming; the advice only when it is followed
-    let settings = super::Settings {
-        advise: follow,
-        rtol: settings.rtol,
-        ..super::Settings::default()
-    };
     let cpu = crate::bench::cpu::process_seconds();
     let outcome = super::run_with(base, &records, settings)?;
     let cpu_seconds = crate::bench::cpu::process_seconds() - cpu;
@@ -393,9 +380,9 @@ pub struct Options<'a> {
     /// One case per effect and seed with every experiment's record analysed jointly,
     /// instead of one case per experiment.
     pub joint: bool,
-    /// Whether the experiment advice is put to the test on the cases not named first,
-    /// and the simulations' tolerance.
-    pub study: Study,
+    /// How each case is analysed (`study`): `advise` puts the experiment advice to the
+    /// test on the cases not named first; `rtol` is the simulations' tolerance.
+    pub study: super::Settings,
     /// Benches (empty: the Rust model).
     pub simulators: &'a [Simulator],
     pub form_error: bool,

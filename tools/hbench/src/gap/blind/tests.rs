@@ -82,9 +82,9 @@ fn air_on_steps_is_told_from_a_softer_oil_by_the_advised_record() {
         &[Effect::EntrainedAir],
         &[Kind::Steps],
         1,
-        Study {
-            follow_advice: true,
-            ..Study::default()
+        crate::gap::Settings {
+            advise: true,
+            ..study()
         },
     )
     .unwrap();
@@ -141,9 +141,9 @@ fn a_study_at_an_impossible_tolerance_is_refused() {
         seeds: 1..2,
         pairs: false,
         joint: false,
-        study: Study {
-            follow_advice: false,
+        study: crate::gap::Settings {
             rtol: 1.0,
+            ..study()
         },
         simulators: &[],
         form_error: true,
