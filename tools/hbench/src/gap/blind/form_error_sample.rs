@@ -1,5 +1,6 @@
 //! Issue 14's CI sample of the blind study on data the model did not make: the bench
-//! carries a model-form error (seed 1: parameters a few percent off, a sensor lag,
+//! carries a model-form error (seed 1, and seed 3 for the manifold and the dry friction:
+//! parameters a few percent off, a sensor lag,
 //! `variants::FormError`), and half of the sample comes from the independent Python/scipy
 //! peer (`tools/peer`), whose manifold, null flow and friction laws are not the model's.
 //! The known model handed to the workflow is section 4.4's.
@@ -26,9 +27,11 @@
 //! 0.40 ms lag of the form error taken up by the viscous term): a miss of the 25 % that
 //! the full study counts, left out of the CI with the CI at 30.8 min (2026-11-26, clean
 //! clone, 2 cores) for its 76-131 CPU s.
-//! The manifold's three effects and the payload, 4 to 17 CPU min a case, are in the CI
-//! without form error (`tests::every_hidden_effect_is_named_first_and_fitted`) and with
-//! it in the full study (docs/gap.md). With nothing hidden the Rust bench is recorded on
+//! The manifold's three effects and the payload, 4 to 17 CPU min a case on seed 1, are in
+//! the CI without form error (`tests::every_hidden_effect_is_named_first_and_fitted`);
+//! with it, the manifold's volume and oil mass and the dry friction are in on seed 3's
+//! steps (below, about 2 CPU min for the three with their judgement), the payload and
+//! the three passages' effects in the full study only (docs/gap.md). With nothing hidden the Rust bench is recorded on
 //! the chirp: on its seed-1 steps the workflow adds entrained air for the pressure
 //! sensors' 0.40 ms lag (docs/gap.md, session 16), a known miss of the issue's target
 //! the full study counts.
@@ -41,10 +44,16 @@ use super::*;
 /// tells from their rivals (issue 14).
 const MAGNITUDE: f64 = 0.25;
 
-/// One case of the sample, judged against its rivals.
+/// One case of the sample (seed 1's form error), judged against its rivals.
 fn judged_case(sim: Simulator, hidden: Option<Effect>, kind: Kind) -> Case {
+    judged_case_of_seed(sim, hidden, kind, 1)
+}
+
+/// One case of the sample under seed `seed`'s draw (the form error, the hidden size and
+/// the noise), judged against its rivals.
+fn judged_case_of_seed(sim: Simulator, hidden: Option<Effect>, kind: Kind, seed: u64) -> Case {
     let hidden: Vec<Effect> = hidden.into_iter().collect();
-    let mut c = case_with(sim, true, &hidden, &[kind], 1).expect("the case runs");
+    let mut c = case_with(sim, true, &hidden, &[kind], seed).expect("the case runs");
     c.rivalry = rivals::judge(&c, false).expect("the case is judged");
     c
 }
@@ -102,4 +111,23 @@ fn on_the_independent_peer_the_hidden_effect_is_named() {
         .map(|e| judged_case(Simulator::Peer, e, Kind::Steps))
         .collect();
     check(&cases, 1);
+}
+
+/// Seed 3's form error (its own parameter errors and sensor lag) makes the manifold's
+/// passages and the dry friction cheap to analyse on the steps, where seed 1's cost 4 to
+/// 17 CPU min a case: the volume 15 CPU s, the oil mass 37, the dry friction 18 (the
+/// analyses of the full study, `docs/blind/form_error/rust_steps_seed3.json`). All three
+/// are told there and were named first and fitted within 18 % (volume 1.21 against
+/// 1.03, oil mass 1.11 against 1.03, dry friction 76.3 N against 75.5).
+#[test]
+fn under_another_form_error_the_manifold_and_the_dry_friction_are_named() {
+    let cases: Vec<Case> = [
+        Effect::ManifoldVolume,
+        Effect::ManifoldInertia,
+        Effect::DryFriction,
+    ]
+    .into_iter()
+    .map(|e| judged_case_of_seed(Simulator::Rust, Some(e), Kind::Steps, 3))
+    .collect();
+    check(&cases, 3);
 }
