@@ -26,7 +26,7 @@ use super::effects::{self, Candidate, Fitted, StepKind};
 use super::evidence::{self, Preference};
 use super::fit::{fit, fit_warm, Fit, Target};
 use super::holdout::{Judge, Validation};
-use super::{effective_samples, recalibrate, selection, target_of, Record, Scored};
+use super::{effective_samples, recalibrate, selection, signals, target_of, Record, Scored};
 
 /// What the records say about the question.
 #[derive(Debug, Clone, Serialize)]
@@ -272,9 +272,10 @@ pub fn ask(
         }
     });
     let chi2 = gap * gap * n;
+    let before = signals::Baseline::of(target, record_names, model);
     let scored: Vec<Scored> = fits
         .iter()
-        .map(|f| Scored::of(f, chi2, effective))
+        .map(|f| Scored::of(f, chi2, effective, &before))
         .collect();
     let preference = evidence::preference(
         &Scored::contenders(&scored)

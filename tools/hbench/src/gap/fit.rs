@@ -122,6 +122,23 @@ impl Target<'_> {
             .collect()
     }
 
+    /// Each series' RMS in the residual `r` of `residuals`: each signal's gap, record after
+    /// record (`blocks`' order); empty when `r` is not such a residual.
+    pub fn block_gaps(&self, r: &DVector<f64>) -> Vec<f64> {
+        if r.len() != self.len() {
+            return Vec::new();
+        }
+        let mut at = 0;
+        self.blocks()
+            .into_iter()
+            .map(|n| {
+                let part = r.rows(at, n);
+                at += n;
+                (part.norm_squared() / n.max(1) as f64).sqrt()
+            })
+            .collect()
+    }
+
     /// RMS of the normalised residuals: 1 at the noise floor.
     pub fn gap(&self, p: &Params) -> f64 {
         self.residuals(p).map_or(f64::INFINITY, |r| {
@@ -253,6 +270,8 @@ pub struct Fit {
     /// Sum of squared normalised residuals after the fit.
     pub chi2: f64,
     pub gap: f64,
+    /// Each signal's gap after the fit (`Target::block_gaps`).
+    pub signal_gaps: Vec<f64>,
 }
 
 /// Points of the first parameter's plausible range tried before the optimiser starts: the
@@ -423,6 +442,7 @@ fn ended(problem: &Problem, c: &Candidate, carried: &[Fitted]) -> Fit {
         chi2,
         params,
         values,
+        signal_gaps: problem.target.block_gaps(&problem.r),
     }
 }
 

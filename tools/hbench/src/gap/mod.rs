@@ -100,18 +100,24 @@ pub struct Scored {
     /// A fitted parameter that ended on a bound of its fit, with its value.
     #[serde(skip_serializing_if = "Option::is_none")]
     pub on_bound: Option<(&'static str, f64)>,
+    /// The signals the fit took further from the data while it brought others closer
+    /// (`signals::Baseline::traded`). Reported, not judged: under a lag of the pressure
+    /// sensors even the hidden effect's fit trades (`signals`, session 29).
+    #[serde(skip_serializing_if = "Option::is_none")]
+    pub trades: Option<String>,
 }
 
 impl Scored {
-    /// `f` scored against the model before it: a residual of chi-square `chi2` worth
-    /// `effective` independent samples (`evidence::score`).
-    fn of(f: &Fit, chi2: f64, effective: f64) -> Scored {
+    /// `f` scored against the model before it, `before`: a residual of chi-square `chi2`
+    /// worth `effective` independent samples (`evidence::score`).
+    fn of(f: &Fit, chi2: f64, effective: f64, before: &signals::Baseline) -> Scored {
         Scored {
             effect: f.name.clone(),
             gap: f.gap,
             score: evidence::score(chi2, f.chi2, effective, f.values.len() as f64),
             parameters: json_values(&f.values),
             on_bound: f.on_bound(),
+            trades: before.traded(&f.signal_gaps),
         }
     }
 

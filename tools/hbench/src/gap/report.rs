@@ -411,6 +411,9 @@ pub fn write(out: &Path, o: &Outcome, model: Option<&Path>) -> Result<(), String
                 s.score,
                 s.on_bound
                     .map(|(p, v)| format!(" (not taken: {p} = {v} on a bound of its fit)"))
+                    .or_else(|| s.trades.as_ref().map(|t| format!(
+                        " (took {t} further from the data while it brought the others closer)"
+                    )))
                     .unwrap_or_default(),
                 s.parameters
                     .iter()

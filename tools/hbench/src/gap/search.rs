@@ -117,9 +117,10 @@ impl<'t> Search<'t> {
         // what the residual left by the model so far is worth: a missing effect leaves
         // a coloured residual, whose samples are not independent
         let (effective, tau) = effective_samples(target, &self.model);
+        let before = signals::Baseline::of(target, self.names, &self.model);
         let scored: Vec<(Scored, &Fit)> = fits
             .iter()
-            .map(|f| (Scored::of(f, chi2, effective), f))
+            .map(|f| (Scored::of(f, chi2, effective, &before), f))
             .collect();
         let round = advice::Round {
             start: self.model.clone(),

@@ -155,6 +155,7 @@ fn scored(effect: &str, score: f64) -> Scored {
         score,
         parameters: Default::default(),
         on_bound: None,
+        trades: None,
     }
 }
 
@@ -174,6 +175,7 @@ fn fitted(name: &str, score: f64) -> (f64, Fit) {
         values: Vec::new(),
         chi2: 0.0,
         gap: 1.0,
+        signal_gaps: Vec::new(),
     };
     (score, fit)
 }

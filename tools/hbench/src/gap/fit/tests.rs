@@ -166,6 +166,7 @@ fn ended_at(c: &Candidate, carried: Vec<Fitted>, values: Vec<(&'static str, f64)
         values,
         chi2: 1.0,
         gap: 1.0,
+        signal_gaps: Vec::new(),
     }
 }
 

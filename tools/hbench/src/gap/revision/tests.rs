@@ -33,6 +33,7 @@ fn run_taking<'t>(
         score,
         parameters: Default::default(),
         on_bound: None,
+        trades: None,
     };
     let candidates = vec![
         scored(taken.name(), 100.0),
