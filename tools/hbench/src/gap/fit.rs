@@ -19,6 +19,7 @@ use super::drive::simulate;
 use super::effects::{Candidate, Fitted, StepKind};
 
 mod coordinate;
+mod screen;
 use coordinate::Coordinate;
 
 /// One record as the fits see it: measurement, experiment, noise per compared signal.
@@ -274,10 +275,6 @@ pub struct Fit {
     pub signal_gaps: Vec<f64>,
 }
 
-/// Points of the first parameter's plausible range tried before the optimiser starts: the
-/// residual is far from quadratic in a resonance's position, so a local method needs a
-/// start in the right basin.
-const SCREEN_POINTS: usize = 5;
 /// Optimiser budget (the crate's patience: evaluations per parameter).
 const PATIENCE: usize = 8;
 /// Relative change of the coordinates below which a fit stops. The coordinates are
@@ -317,30 +314,13 @@ fn switch_on(p: &mut Params, e: Effect) {
 /// `carried`: the parameters of the effects added before, refitted jointly so that an
 /// earlier effect that took up part of this one's signature gives it back.
 pub fn fit(target: &Target, base: &Params, c: &Candidate, carried: &[Fitted]) -> Fit {
-    let mut problem = problem_for(target, base, c, carried);
+    let problem = problem_for(target, base, c, carried);
     let rtol = problem.base.solver.rtol;
     // screen the first parameter over its plausible range, the others at their defaults
     let defaults = problem.coordinates_of(&problem.base);
-    let first = problem.coords[0].fitted;
-    let signs: &[f64] = if first.either_sign {
-        &[1.0, -1.0]
-    } else {
-        &[1.0]
-    };
-    let screened: Vec<DVector<f64>> = signs
-        .iter()
-        .flat_map(|sign| {
-            (0..SCREEN_POINTS).map(move |i| {
-                let u = i as f64 / (SCREEN_POINTS - 1) as f64;
-                let [lo, hi] = first.plausible;
-                let v = if first.log {
-                    lo * (hi / lo).powf(u)
-                } else {
-                    lo + (hi - lo) * u
-                };
-                sign * v
-            })
-        })
+    let values = screen::values(&problem.coords[0].fitted);
+    let screened: Vec<DVector<f64>> = values
+        .into_iter()
         .map(|v| {
             let mut z = defaults.clone();
             z[0] = problem.coords[0].coordinate(v);
@@ -351,28 +331,41 @@ pub fn fit(target: &Target, base: &Params, c: &Candidate, carried: &[Fitted]) ->
         .par_iter()
         .map(|z| problem.eval(z).norm_squared())
         .collect();
-    // the first of the lowest, in screening order
-    let mut best = 0;
-    for (k, c) in chi2.iter().enumerate() {
-        if *c < chi2[best] {
-            best = k;
-        }
-    }
-    let mut z0 = screened[best].clone();
+    let starts = screen::basins(&chi2);
     let own = c.fitted.len();
-    if !carried.is_empty() && own > 0 {
-        // the candidate's own parameters first, the carried ones held where the model has
-        // them: a fit that frees more parameters starts from the fit with fewer, not from
-        // a screened point a step that moves every parameter at once can leave for a
-        // worse basin (session 12: a payload re-asked beside the viscous friction)
-        let mut alone = Problem::new(target, problem.base.clone(), &c.fitted, &[]);
-        alone.at(DVector::from_iterator(own, z0.iter().take(own).copied()));
-        let (alone, _) = optimiser(rtol).minimize(alone);
-        z0.rows_mut(0, own).copy_from(&alone.z);
+    let from = |k: usize| {
+        let mut problem = problem_for(target, base, c, carried);
+        let mut z0 = screened[k].clone();
+        if !carried.is_empty() && own > 0 {
+            // the candidate's own parameters first, the carried ones held where the model
+            // has them: a fit that frees more parameters starts from the fit with fewer,
+            // not from a screened point a step that moves every parameter at once can
+            // leave for a worse basin (session 12: a payload re-asked beside the viscous
+            // friction)
+            let mut alone = Problem::new(target, problem.base.clone(), &c.fitted, &[]);
+            alone.at(DVector::from_iterator(own, z0.iter().take(own).copied()));
+            let (alone, _) = optimiser(rtol).minimize(alone);
+            z0.rows_mut(0, own).copy_from(&alone.z);
+        }
+        problem.at(z0);
+        let (problem, _report) = optimiser(rtol).minimize(problem);
+        ended(&problem, c, carried)
+    };
+    // a fit that ends within SECOND_BASIN_GAP of the noise floor is kept: a second basin
+    // can take little more from it, at a whole fit's cost
+    let mut starts = starts.into_iter();
+    let best = from(starts.next().expect("a start"));
+    match starts.next() {
+        Some(k) if best.gap > screen::SECOND_BASIN_GAP => {
+            let other = from(k);
+            if other.chi2 < best.chi2 {
+                other
+            } else {
+                best
+            }
+        }
+        _ => best,
     }
-    problem.at(z0);
-    let (problem, _report) = optimiser(rtol).minimize(problem);
-    ended(&problem, c, carried)
 }
 
 /// `fit`, and the same fit started again from `warm`, a model that fitted the same

@@ -270,3 +270,22 @@ fn a_fit_stopped_at_its_simulation_tolerance_ends_as_well_as_a_tighter_fit() {
         tight.values
     );
 }
+
+/// A fit starts from the screen's lowest point and from its lowest other local minimum:
+/// one start on a profile with one valley, two on one with two (the first of equals, in
+/// screening order), and a flat profile gives its first point.
+#[test]
+fn a_screen_with_two_valleys_gives_two_starts() {
+    assert_eq!(screen::basins(&[5.0, 3.0, 1.0, 2.0, 4.0]), vec![2]);
+    assert_eq!(screen::basins(&[2.0, 3.0, 1.0, 2.0, 4.0]), vec![2, 0]);
+    assert_eq!(screen::basins(&[1.0, 1.0, 1.0, 1.0, 1.0]), vec![0]);
+    assert_eq!(
+        screen::basins(&[3.0, 2.0, 4.0, 1.0, 5.0, 0.5, 6.0]),
+        vec![5, 3]
+    );
+    // a parameter of either sign: -hi .. -lo, lo .. hi, one valley at the small magnitudes
+    assert_eq!(
+        screen::basins(&[9.0, 7.0, 5.0, 3.0, 2.0, 2.1, 4.0, 6.0]),
+        vec![4]
+    );
+}
