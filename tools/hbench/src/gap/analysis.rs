@@ -9,6 +9,7 @@ use serde::Serialize;
 
 use super::data::{Drive, Experiment, Measured};
 use super::drive::Traces;
+pub use super::oscillation::Oscillation;
 pub use super::resonance::Resonance;
 use super::resonance::{resonances, spectra, COHERENCE, INPUT_POWER};
 
@@ -213,6 +214,9 @@ pub struct Localisation {
     pub pressure_resonance: Option<Resonance>,
     /// Delay that best explains the phase difference over the coherent bins (s).
     pub equivalent_delay: Option<f64>,
+    /// The oscillation the record carries and the model lacks in the window of largest
+    /// disagreement, if the residual there is one (`oscillation`).
+    pub oscillation: Option<Oscillation>,
     #[serde(skip)]
     pub response: Option<Response>,
 }
@@ -280,7 +284,7 @@ pub fn localise(
         })
         .collect();
     let n = m.time.len();
-    let windows = (0..WINDOWS)
+    let windows: Vec<WindowGap> = (0..WINDOWS)
         .map(|w| {
             let (a, b) = (w * n / WINDOWS, ((w + 1) * n / WINDOWS).min(n));
             let mut s = 0.0;
@@ -300,6 +304,7 @@ pub fn localise(
             }
         })
         .collect();
+    let oscillation = oscillation_in_worst(m, sim, &windows, noise);
     let input_name = match &e.drive {
         Drive::Proportional { reference, .. } => reference.as_str(),
         Drive::OpenLoop => "u1",
@@ -356,8 +361,28 @@ pub fn localise(
         resonance,
         pressure_resonance,
         equivalent_delay: delay,
+        oscillation,
         response,
     }
+}
+
+/// `oscillation::find` in the window of largest disagreement, against the noise of the
+/// signal it reads (P1 - P2: both sensors' noise; y: the position sensor's).
+fn oscillation_in_worst(
+    m: &Measured,
+    sim: &Traces,
+    windows: &[WindowGap],
+    noise: &[(&'static str, f64)],
+) -> Option<Oscillation> {
+    let worst = (0..windows.len()).max_by(|a, b| windows[*a].gap.total_cmp(&windows[*b].gap))?;
+    let n = m.time.len();
+    let range = worst * n / WINDOWS..((worst + 1) * n / WINDOWS).min(n);
+    let sigma = |name: &str| noise.iter().find(|(s, _)| *s == name).map(|(_, v)| *v);
+    let load = sigma("P1")
+        .zip(sigma("P2"))
+        .map(|(a, b)| a.hypot(b))
+        .or_else(|| sigma("y"))?;
+    super::oscillation::find(m, sim, range, load)
 }
 
 fn wrap(deg: f64) -> f64 {
@@ -398,6 +423,25 @@ pub fn describe(l: &Localisation) -> Vec<String> {
         s.push(format!(
             "resonance of {}: measured {:.1} Hz (damping {:.3}), simulated {:.1} Hz (damping {:.3})",
             r.response, r.measured_hz, r.measured_damping, r.simulated_hz, r.simulated_damping
+        ));
+    }
+    if let Some(o) = &l.oscillation {
+        let (unit, f) = if o.signal == "y" {
+            ("um", 1e6)
+        } else {
+            ("bar", 1e-5)
+        };
+        s.push(format!(
+            "{} oscillates at {:.0} Hz in {:.2}-{:.2} s: measured {:.3} {unit} RMS, simulated {:.3} {unit} \
+             (the sinusoid holds {:.0} % of the residual there): an oscillation the model does not have; \
+             a fit in time cannot follow a self-excited oscillation's phase",
+            o.signal,
+            o.frequency_hz,
+            o.start,
+            o.end,
+            o.measured_rms * f,
+            o.simulated_rms * f,
+            100.0 * o.share
         ));
     }
     if let Some(d) = l.equivalent_delay {

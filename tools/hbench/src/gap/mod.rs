@@ -23,6 +23,7 @@ pub mod experiments;
 pub mod fit;
 pub mod hide;
 pub mod holdout;
+pub mod oscillation;
 pub mod peer;
 pub mod recalibrate;
 mod report;

@@ -1,7 +1,7 @@
 //! Issue 14's CI sample of the blind study on data the model did not make: the bench
-//! carries a model-form error (seed 1, and seed 3 for the manifold and the dry friction:
-//! parameters a few percent off, a sensor lag,
-//! `variants::FormError`), and half of the sample comes from the independent Python/scipy
+//! carries a model-form error (parameters a few percent off, a sensor lag,
+//! `variants::FormError`: seed 1's on the steps, seed 3's for the manifold and the dry
+//! friction, seed 1's on the moves for the payload), and half of the sample comes from the independent Python/scipy
 //! peer (`tools/peer`), whose manifold, null flow and friction laws are not the model's.
 //! The known model handed to the workflow is section 4.4's.
 //!
@@ -33,8 +33,9 @@
 //! 1, are in the CI without form error
 //! (`tests::every_hidden_effect_is_named_first_and_fitted`); with it, the manifold's volume
 //! and oil mass and the dry friction are in on seed 3's steps (below, about 2 CPU min for
-//! the three with their judgement), the payload and the three passages' effects in the full
-//! study only (docs/gap.md). With nothing hidden the Rust bench is recorded on the chirp:
+//! the three with their judgement), and since session 30 the payload on seed 1's slow moves
+//! (25 CPU s there; the test 41 s wall); the three passages' effects in the full study
+//! only (docs/gap.md). With nothing hidden the Rust bench is recorded on the chirp:
 //! on its seed-1 steps the workflow adds entrained air for the pressure sensors' 0.40 ms
 //! lag (docs/gap.md, session 16), a known miss of the issue's target the full study counts.
 
@@ -132,4 +133,20 @@ fn under_another_form_error_the_manifold_and_the_dry_friction_are_named() {
     .map(|e| judged_case(Simulator::Rust, Some(e), Kind::Steps, 3))
     .collect();
     check(&cases, 3);
+}
+
+/// The payload with form error (seed 1's: parameters a few percent off, the pressure
+/// sensors lagging 0.40 ms) on the slow +-10 mm moves, where it costs 25 CPU s against 120
+/// on seed 1's steps and 250 on seed 3's: told from its closest rival, the manifold's oil
+/// mass, by ln B 743, and named first, 3.50 kg against 3.18 at its step and 3.37 at the
+/// run's end (docs/blind/form_error/rust_moves_seed1.json, session 30).
+#[test]
+fn on_the_slow_moves_the_payload_is_named() {
+    let cases = vec![judged_case(
+        Simulator::Rust,
+        Some(Effect::Payload),
+        Kind::Moves,
+        1,
+    )];
+    check(&cases, 1);
 }
