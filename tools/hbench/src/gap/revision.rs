@@ -25,6 +25,9 @@
 //! that question leaves a run that ended far above the floor standing, it is asked with
 //! one more recalibration beside the candidates, if that pays its price with a candidate
 //! that could be taken (`widened`).
+//! When the step's rival is a recalibration the run made later anyway, the question
+//! between the choice and that rival, the recalibration re-fitted beside each, would ask
+//! nothing: the best two effects of the step's round stand in for it (`stand_ins`).
 //! A question asked after another (held or widened) starts each fit from the other's fit
 //! of the same candidate as well as cold, and keeps the lower end (`fit::fit_warm`): the
 //! answer must not depend on the basin a cold start found. Whatever the answer, the
@@ -79,8 +82,8 @@ impl Path {
 pub struct Revision {
     /// Index of the step asked again (0: the first).
     pub step: usize,
-    /// Its choice and its rival.
-    pub between: [String; 2],
+    /// Its choice and its rival (or rivals, `stand_ins`).
+    pub between: Vec<String>,
     /// Why it was asked: contested, or taken clearly by a run that ended far above the
     /// noise floor.
     pub reason: String,
@@ -142,7 +145,9 @@ fn moved(run: &Search, s: &Step, own: Option<&'static str>) -> Option<(&'static 
 struct Question<'t> {
     /// Index of the step.
     k: usize,
-    rival: String,
+    /// The step's rival, or the best effects of its round when the rival was a
+    /// recalibration the run made anyway (`stand_ins`).
+    rivals: Vec<String>,
     /// Why: contested, or taken clearly by a run far above the floor.
     why: String,
     /// The search before the step.
@@ -198,6 +203,15 @@ fn question<'t>(run: &Search<'t>) -> Option<Question<'t>> {
         if later.is_empty() {
             return None;
         }
+        let theirs = fitted(k, rival);
+        let rivals = if !theirs.is_empty() && theirs.iter().all(|p| later.contains(p)) {
+            stand_ins(run, k, &mine, &later)
+        } else {
+            vec![rival.to_string()]
+        };
+        if rivals.is_empty() {
+            return None;
+        }
         let why = if contested.is_some() {
             "contested".to_string()
         } else if let Some((path, at_step, at_end)) = shifted {
@@ -214,7 +228,7 @@ fn question<'t>(run: &Search<'t>) -> Option<Question<'t>> {
         };
         Some(Question {
             k,
-            rival: rival.to_string(),
+            rivals,
             why,
             earlier,
             later,
@@ -227,13 +241,13 @@ fn question<'t>(run: &Search<'t>) -> Option<Question<'t>> {
 pub fn reask<'t>(run: &Search<'t>, within: f64, progress: bool) -> Option<Reasked<'t>> {
     let Question {
         k,
-        rival,
+        rivals,
         why,
         earlier,
         later,
     } = question(run)?;
     let step = &run.steps[k];
-    let between = [step.name.clone(), rival.clone()];
+    let between: Vec<String> = std::iter::once(step.name.clone()).chain(rivals).collect();
     let from = &earlier.model;
     let paths: Vec<&str> = earlier
         .carried
@@ -256,14 +270,20 @@ pub fn reask<'t>(run: &Search<'t>, within: f64, progress: bool) -> Option<Reaske
         )
         .ok()
     };
+    // a rival, not the step's choice, won clearly
     let clear_for = |asked: &Asked| {
         let d = &asked.decision;
+        let rival_won = d
+            .winner
+            .as_deref()
+            .filter(|w| *w != between[0] && between.iter().any(|b| b == w));
         asked.won.is_some()
             && outfitted(asked).is_none()
-            && d.winner.as_deref() == Some(rival.as_str())
-            && d.preference
-                .as_ref()
-                .is_some_and(|p| p.best == rival && p.ln_bayes_factor >= CLEAR_LN_BAYES)
+            && rival_won.is_some_and(|w| {
+                d.preference
+                    .as_ref()
+                    .is_some_and(|p| p.best == w && p.ln_bayes_factor >= CLEAR_LN_BAYES)
+            })
     };
     let mut recalibrate = recalibrate;
     let mut asked = ask(&recalibrate, None)?;
@@ -313,16 +333,16 @@ pub fn reask<'t>(run: &Search<'t>, within: f64, progress: bool) -> Option<Reaske
             )
         });
         report.verdict = format!(
-            "At the end of the run, step {} ({}) was asked again between `{}` and `{}` from the model before it, with {} re-fitted beside each: {}{bound}; the run stands",
+            "At the end of the run, step {} ({}) was asked again between {} from the model before it, with {} re-fitted beside each: {}{bound}; the run stands",
             k + 1,
             report.reason,
-            between[0],
-            between[1],
+            listed(&between),
             refitted(&report),
             d.verdict
         );
         return Some(Reasked { report, kept: None });
     }
+    let rival = d.winner.clone().unwrap_or_default();
     let mut continued = continue_with(earlier, &asked);
     continued.run();
     // the two ends compared in the original end's independent samples
@@ -346,7 +366,9 @@ pub fn reask<'t>(run: &Search<'t>, within: f64, progress: bool) -> Option<Reaske
         report.reason,
         refitted(&report),
         rival,
-        between[0],
+        d.preference
+            .as_ref()
+            .map_or(between[0].as_str(), |p| p.runner_up.as_str()),
         d.preference.as_ref().map_or(0.0, |p| p.ln_bayes_factor),
         rival,
         continued.gap,
@@ -397,7 +419,7 @@ type AskWith<'a> = dyn Fn(&[String], Option<&Asked>) -> Option<Asked> + 'a;
 /// no winner (session 26). Each wider question starts its fits from the plain one's too.
 fn widened(
     from: &hbmodel::Params,
-    between: &[String; 2],
+    between: &[String],
     (recalibrate, asked): (Vec<String>, Asked),
     (within, held): (f64, &[String]),
     clear: &dyn Fn(&Asked) -> bool,
@@ -433,6 +455,15 @@ fn widened(
         }
     }
     best.map_or((recalibrate, asked), |(_, set, a)| (set, a))
+}
+
+/// Candidates in words: `a` and `b`, or `a`, `b` and `c`.
+fn listed(names: &[String]) -> String {
+    let quoted: Vec<String> = names.iter().map(|n| format!("`{n}`")).collect();
+    match quoted.split_last() {
+        Some((last, rest)) if !rest.is_empty() => format!("{} and {last}", rest.join(", ")),
+        _ => quoted.join(""),
+    }
 }
 
 /// A parameter's value for a person: 4 decimals, or 4 digits with an exponent when it is
@@ -548,6 +579,9 @@ fn continue_with<'t>(mut s: Search<'t>, asked: &Asked) -> Search<'t> {
     s.take(step, round, winner);
     s
 }
+
+mod stand_ins;
+use stand_ins::stand_ins;
 
 #[cfg(test)]
 mod tests;

@@ -131,7 +131,8 @@ fn a_contested_step_is_asked_again_and_the_run_continued_from_a_clear_rival() {
 
 /// A step taken clearly (ln B 10) is asked again only when the run ended far above
 /// the noise floor or, for an added effect, moved its size by more than MOVED_BY, and
-/// only if its rival paid its price.
+/// only if its rival paid its price; a rival the run recalibrated anyway is stood in for
+/// by the best effects of the step's round.
 #[test]
 fn a_clear_step_is_asked_again_only_when_the_run_ends_far_above_the_floor_or_moved_it() {
     let s = Setup::new(Simulator::Rust, false, &[Effect::SensorDelay], 2);
@@ -156,7 +157,10 @@ fn a_clear_step_is_asked_again_only_when_the_run_ends_far_above_the_floor_or_mov
     );
     run.gap = 2.0 * FAR_ABOVE_FLOOR_GAP;
     let q = question(&run).expect("a run far above the floor");
-    assert_eq!((q.k, q.rival.as_str()), (0, "sensor_delay"));
+    assert_eq!(
+        (q.k, q.rivals.as_slice()),
+        (0, ["sensor_delay".to_string()].as_slice())
+    );
     assert_eq!(q.later, ["sv1.rated_flow"]);
     assert!(q.why.contains("far above"), "{}", q.why);
     assert!(q.earlier.steps.is_empty());
@@ -182,7 +186,10 @@ fn a_clear_step_is_asked_again_only_when_the_run_ends_far_above_the_floor_or_mov
         let q = question(&run);
         assert_eq!(q.is_some(), asked, "moved by {factor}");
         if let Some(q) = q {
-            assert_eq!((q.k, q.rival.as_str()), (0, "sensor_delay"));
+            assert_eq!(
+                (q.k, q.rivals.as_slice()),
+                (0, ["sensor_delay".to_string()].as_slice())
+            );
             assert!(q.why.contains(&format!("moved its `{own}`")), "{}", q.why);
         }
     }
@@ -190,6 +197,34 @@ fn a_clear_step_is_asked_again_only_when_the_run_ends_far_above_the_floor_or_mov
     spec.set(&mut run.model, at_step * 2.0);
     run.steps[0].kind = StepKind::Recalibrate;
     assert!(question(&run).is_none());
+
+    // a rival the run recalibrated anyway is stood in for by the round's two best effects
+    // that paid their price (`stand_ins`): asked against the recalibration with it
+    // re-fitted beside each, the question would ask nothing; an effect that did not pay
+    // stands in for nothing
+    run.steps[0].kind = StepKind::Add;
+    spec.set(&mut run.model, at_step);
+    run.gap = 2.0 * FAR_ABOVE_FLOOR_GAP;
+    // the rival becomes SV1's rated flow, which the run's second step re-fitted
+    run.steps[0].candidates[1].effect = "sv1.rated_flow".into();
+    if let Some(p) = run.steps[0].preference.as_mut() {
+        p.runner_up = "sv1.rated_flow".into();
+    }
+    assert_eq!(advice::rival(&run.steps[0]), Some("sv1.rated_flow"));
+    let flow = run.rounds[1].fits[0].1.clone();
+    let effect_fit = |e: Effect| fit(&target, &s.known, &candidate(e).expect("a candidate"), &[]);
+    let fits = &mut run.rounds[0].fits;
+    fits.push((99.0, flow));
+    fits.push((40.0, effect_fit(Effect::DryFriction)));
+    fits.push((-5.0, effect_fit(Effect::EntrainedAir)));
+    fits.push((60.0, effect_fit(Effect::SensorDelay)));
+    fits.push((30.0, effect_fit(Effect::InternalLeakage)));
+    let q = question(&run).expect("a run far above the floor");
+    assert_eq!(q.k, 0);
+    assert_eq!(q.later, ["sv1.rated_flow"]);
+    assert_eq!(q.rivals, ["sensor_delay", "dry_friction"], "{}", q.why);
+    let listed_three = listed(&["a".into(), "b".into(), "c".into()]);
+    assert_eq!(listed_three, "`a`, `b` and `c`");
 }
 
 /// A question widened keeps the one extra recalibration whose best fit pays its
