@@ -3,6 +3,7 @@
 //! from the same input), and the noise floor of the data.
 
 use std::f64::consts::PI;
+use std::ops::Range;
 
 use rustfft::{num_complex::Complex, FftPlanner};
 use serde::Serialize;
@@ -11,7 +12,7 @@ use super::data::{Drive, Experiment, Measured};
 use super::drive::Traces;
 pub use super::oscillation::Oscillation;
 pub use super::resonance::Resonance;
-use super::resonance::{resonances, spectra, COHERENCE, INPUT_POWER};
+use super::resonance::{hann, resonances, spectra, COHERENCE, INPUT_POWER};
 
 /// Noise standard deviation of a sampled signal, estimated from the data alone by
 /// minimum statistics: white noise spreads its power evenly over all frequencies, while
@@ -35,9 +36,7 @@ pub fn noise(x: &[f64], quantum: f64) -> f64 {
         return floor;
     }
     let fft = FftPlanner::new().plan_fft_forward(n);
-    let hann: Vec<f64> = (0..n)
-        .map(|k| 0.5 - 0.5 * (2.0 * PI * k as f64 / n as f64).cos())
-        .collect();
+    let hann = hann(n);
     let w2: f64 = hann.iter().map(|w| w * w).sum();
     // bins 1..n/2: the mean removal empties bin 0
     let bins = n / 2 - 1;
@@ -286,7 +285,7 @@ pub fn localise(
     let n = m.time.len();
     let windows: Vec<WindowGap> = (0..WINDOWS)
         .map(|w| {
-            let (a, b) = (w * n / WINDOWS, ((w + 1) * n / WINDOWS).min(n));
+            let Range { start: a, end: b } = window(w, n);
             let mut s = 0.0;
             let mut count = 0;
             for (name, sigma) in noise {
@@ -375,14 +374,18 @@ fn oscillation_in_worst(
     noise: &[(&'static str, f64)],
 ) -> Option<Oscillation> {
     let worst = (0..windows.len()).max_by(|a, b| windows[*a].gap.total_cmp(&windows[*b].gap))?;
-    let n = m.time.len();
-    let range = worst * n / WINDOWS..((worst + 1) * n / WINDOWS).min(n);
+    let range = window(worst, m.time.len());
     let sigma = |name: &str| noise.iter().find(|(s, _)| *s == name).map(|(_, v)| *v);
     let load = sigma("P1")
         .zip(sigma("P2"))
         .map(|(a, b)| a.hypot(b))
         .or_else(|| sigma("y"))?;
     super::oscillation::find(m, sim, range, load)
+}
+
+/// The samples of time window `w` of WINDOWS over a record of `n` samples.
+fn window(w: usize, n: usize) -> Range<usize> {
+    w * n / WINDOWS..((w + 1) * n / WINDOWS).min(n)
 }
 
 fn wrap(deg: f64) -> f64 {

@@ -21,6 +21,7 @@ use serde::Serialize;
 
 use super::data::Measured;
 use super::drive::Traces;
+use super::resonance::hann;
 
 /// An oscillation the record carries and the model lacks, in one time window.
 #[derive(Debug, Clone, Serialize)]
@@ -140,16 +141,9 @@ fn detrend(x: &[f64]) -> Vec<f64> {
 fn peak_frequency(x: &[f64], period: f64) -> Option<f64> {
     let n = x.len();
     let nfft = n.next_power_of_two() * PADDING;
+    let taper = hann(n);
     let mut buf: Vec<Complex<f64>> = (0..nfft)
-        .map(|k| {
-            let v = if k < n {
-                let w = 0.5 - 0.5 * (2.0 * PI * k as f64 / (n - 1) as f64).cos();
-                x[k] * w
-            } else {
-                0.0
-            };
-            Complex::new(v, 0.0)
-        })
+        .map(|k| Complex::new(if k < n { x[k] * taper[k] } else { 0.0 }, 0.0))
         .collect();
     FftPlanner::new().plan_fft_forward(nfft).process(&mut buf);
     let df = 1.0 / (nfft as f64 * period);

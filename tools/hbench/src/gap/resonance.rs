@@ -86,6 +86,15 @@ const SK_ITERATIONS: usize = 30;
 type Vector8<T> = SVector<T, 8>;
 type Matrix8<T> = SMatrix<T, 8, 8>;
 
+/// The periodic Hann window of `n` samples, as the spectra of the gap workflow taper
+/// their segments (Welch's spectra here, the noise estimate, the oscillation's
+/// periodogram).
+pub fn hann(n: usize) -> Vec<f64> {
+    (0..n)
+        .map(|k| 0.5 - 0.5 * (2.0 * PI * k as f64 / n as f64).cos())
+        .collect()
+}
+
 /// Cross and auto spectra of x -> y by Welch's method (Hann, 50 % overlap): frequencies
 /// (Hz), Sxy, Sxx, Syy.
 pub fn spectra(
@@ -95,9 +104,7 @@ pub fn spectra(
 ) -> (Vec<f64>, Vec<Complex<f64>>, Vec<f64>, Vec<f64>) {
     let n = SEGMENT.min(x.len().next_power_of_two() / 2).max(16);
     let fft = FftPlanner::new().plan_fft_forward(n);
-    let hann: Vec<f64> = (0..n)
-        .map(|k| 0.5 - 0.5 * (2.0 * PI * k as f64 / n as f64).cos())
-        .collect();
+    let hann = hann(n);
     let mut sxy = vec![Complex::new(0.0, 0.0); n / 2];
     let (mut sxx, mut syy) = (vec![0.0; n / 2], vec![0.0; n / 2]);
     // half-overlapping segments, the last one flush with the end so the record's tail

@@ -276,7 +276,7 @@ pub fn reask<'t>(run: &Search<'t>, within: f64, progress: bool) -> Option<Reaske
         let rival_won = d
             .winner
             .as_deref()
-            .filter(|w| *w != between[0] && between.iter().any(|b| b == w));
+            .filter(|w| between[1..].iter().any(|b| b == w));
         asked.won.is_some()
             && outfitted(asked).is_none()
             && rival_won.is_some_and(|w| {
