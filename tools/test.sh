@@ -3,11 +3,11 @@
 # runs the Rust tests (model physics, FMI importer) and the Python tests (fmpy).
 #
 # The two suites run side by side: on 2 cores the Rust suite keeps both busy only while
-# its short tests last; for most of its last minutes one blind study runs alone (the
-# chapter-4 story, 350 s on one core), and the Python suite (about 220 CPU s, of which
-# the fuzzer's fixed 80 s budget) fills the idle core. Measured on this machine
-# (2026-11-26, docs/gap.md session 19): one after the other the hbench tests took 753 s
-# and pytest 232 s; side by side 757 s for both, pytest 385 s of it.
+# its short tests last, and the Python suite (about 220 CPU s, of which the fuzzer's
+# fixed 80 s budget) fills a core its long blind studies leave idle. Measured on this
+# machine (2026-11-26, docs/gap.md session 19): one after the other the hbench tests
+# took 753 s and pytest 232 s; side by side 757 s for both, pytest 385 s of it. The
+# hbench tests' CPU by test is in docs/gap.md, session 31.
 set -euo pipefail
 cd "$(dirname "$0")/.."
 bash tools/setup.sh

@@ -163,6 +163,11 @@ enum Command {
         /// this. A model file's solver.rtol is kept in fitted_model.toml
         #[arg(long, default_value_t = gap::RTOL)]
         rtol: f64,
+        /// Stop once this many effects are added (recalibrations not counted). Each
+        /// further round fits every candidate again, so fewer bound the cost when only
+        /// the first answers are wanted
+        #[arg(long, default_value_t = gap::MAX_STEPS, value_parser = clap::builder::RangedU64ValueParser::<usize>::new().range(1..=gap::MAX_STEPS as u64))]
+        max_effects: usize,
     },
     /// Write measured-like data with hidden effects: the model with each named effect on at
     /// a random plausible magnitude, driven through an experiment and sampled like the bench
@@ -350,6 +355,7 @@ fn main() -> ExitCode {
             between,
             recalibrate,
             rtol,
+            max_effects,
         } => gap::main(
             &data,
             &experiment,
@@ -359,6 +365,7 @@ fn main() -> ExitCode {
                 progress: true,
                 within: recalibrate_within,
                 rtol,
+                max_effects,
                 ..gap::Settings::default()
             },
             &between,

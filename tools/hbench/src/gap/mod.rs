@@ -259,31 +259,6 @@ fn json_values(values: &[(&'static str, f64)]) -> serde_json::Map<String, serde_
         .collect()
 }
 
-/// Run the workflow on one loaded record, with recalibrations within the default bounds.
-#[cfg(test)]
-pub fn run(
-    start: &Params,
-    e: &Experiment,
-    m: &Measured,
-    progress: bool,
-) -> Result<Outcome, String> {
-    let record = Record {
-        name: "record".into(),
-        experiment: e.clone(),
-        measured: m.clone(),
-    };
-    run_with(
-        start,
-        std::slice::from_ref(&record),
-        Settings {
-            progress,
-            // the blind tests score the naming; the advice has its own
-            advise: false,
-            ..Settings::default()
-        },
-    )
-}
-
 /// How a run is carried out.
 #[derive(Debug, Clone, Copy)]
 pub struct Settings {
@@ -298,6 +273,9 @@ pub struct Settings {
     pub advise: bool,
     /// Relative tolerance of the workflow's simulations ([`RTOL`]).
     pub rtol: f64,
+    /// The search stops once this many effects are in ([`MAX_STEPS`]): fewer bound
+    /// the cost when only the first answers are wanted.
+    pub max_effects: usize,
 }
 
 impl Default for Settings {
@@ -307,6 +285,7 @@ impl Default for Settings {
             within: recalibrate::DEFAULT_FRACTION,
             advise: true,
             rtol: RTOL,
+            max_effects: MAX_STEPS,
         }
     }
 }
@@ -343,6 +322,7 @@ pub fn run_with(start: &Params, records: &[Record], settings: Settings) -> Resul
     let initial_gap = target.gap(start);
     let names: Vec<String> = records.iter().map(|r| r.name.clone()).collect();
     let mut search = search::Search::new(&target, &names, start, within, progress);
+    search.max_effects = settings.max_effects;
     search.run();
     // a step the record could not decide, asked again with what the run learned later
     let revision = revision::reask(&search, within, progress);

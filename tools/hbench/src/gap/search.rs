@@ -45,6 +45,9 @@ pub struct Search<'t> {
     /// Independent samples the final residual is worth (N / tau).
     pub effective: f64,
     pub verdict: String,
+    /// The search stops once this many effects are in (MAX_STEPS unless a user asks
+    /// for fewer, `Settings::max_effects`).
+    pub max_effects: usize,
     marks: Vec<Mark>,
 }
 
@@ -73,6 +76,7 @@ impl<'t> Search<'t> {
             rejected: Vec::new(),
             effective: target.len() as f64,
             verdict: String::new(),
+            max_effects: MAX_STEPS,
             marks: Vec::new(),
         }
     }
@@ -90,13 +94,13 @@ impl<'t> Search<'t> {
             .count()
     }
 
-    /// Rounds until no candidate is worth adding or MAX_STEPS effects are in.
+    /// Rounds until no candidate is worth adding or `max_effects` effects are in.
     pub fn run(&mut self) {
         self.verdict = loop {
-            if self.added() == MAX_STEPS {
+            if self.added() >= self.max_effects {
                 break format!(
-                    "stopped after {MAX_STEPS} effects with the gap at {:.2}",
-                    self.gap
+                    "stopped after {} effects with the gap at {:.2}",
+                    self.max_effects, self.gap
                 );
             }
             if let Some(verdict) = self.round() {

@@ -38,6 +38,9 @@
 //! only (docs/gap.md). With nothing hidden the Rust bench is recorded on the chirp:
 //! on its seed-1 steps the workflow adds entrained air for the pressure sensors' 0.40 ms
 //! lag (docs/gap.md, session 16), a known miss of the issue's target the full study counts.
+//! Since session 31 a case is judged against its rivals only when its answer misses
+//! (`judged_case`): the four tests took 630 CPU s against 835 with every case judged
+//! (measured side by side with another test binary).
 
 use super::super::hide::Kind;
 use super::super::variants::Simulator;
@@ -48,43 +51,55 @@ use super::*;
 const MAGNITUDE: f64 = 0.25;
 
 /// One case of the sample under seed `seed`'s draw (the form error, the hidden size and
-/// the noise), judged against its rivals.
+/// the noise). It is judged against its rivals only when its answer would fail the
+/// issue's targets (`right`): then whether the record tells the effect decides whether
+/// the miss counts. A right answer passes whatever the judge says, and the judge fits
+/// every rival to the record, which cost about as much as the analyses it judges.
 fn judged_case(sim: Simulator, hidden: Option<Effect>, kind: Kind, seed: u64) -> Case {
     let hidden: Vec<Effect> = hidden.into_iter().collect();
     let mut c = case_with(sim, true, &hidden, &[kind], seed).expect("the case runs");
-    c.rivalry = rivals::judge(&c, false).expect("the case is judged");
+    if !right(&c) {
+        c.rivalry = rivals::judge(&c, false).expect("the case is judged");
+    }
     c
+}
+
+/// The issue's targets met by one case: nothing added when nothing is hidden; the
+/// hidden effect named first and its first parameter within MAGNITUDE of the truth.
+fn right(c: &Case) -> bool {
+    if c.hidden.is_empty() {
+        return c.named.is_empty();
+    }
+    c.first_correct() && c.magnitude_error().is_some_and(|off| off <= MAGNITUDE)
 }
 
 /// The issue's targets, case by case: with nothing hidden nothing is added; a hidden
 /// effect the record tells from its rivals is named first and fitted within MAGNITUDE. A
 /// case the record does not tell is in the table only: naming the rival there is a coin
-/// toss the issue does not score. At least `told` cases must be told, or the test would
-/// check nothing.
-fn check(cases: &[Case], told: usize) {
+/// toss the issue does not score. At least `named` cases with an effect hidden must be
+/// named first and fitted within MAGNITUDE, or the test would check nothing.
+fn check(cases: &[Case], named: usize) {
     eprintln!("{}", table(cases));
-    let mut told_cases = 0;
+    let mut right_cases = 0;
     for c in cases {
         if c.hidden.is_empty() {
             assert!(c.named.is_empty(), "nothing hidden, something added: {c:?}");
             continue;
         }
-        if c.told_from_rivals() != Some(true) {
+        if right(c) {
+            right_cases += 1;
             continue;
         }
-        told_cases += 1;
+        // a miss counts only where the record tells the effect from its rivals
         assert!(
-            c.first_correct(),
-            "told from its rivals, not named first: {c:?}"
+            c.told_from_rivals() != Some(true),
+            "told from its rivals, not named first or fitted {:?} off the truth: {c:?}",
+            c.magnitude_error()
         );
-        let off = c
-            .magnitude_error()
-            .expect("the named effect carries its fit");
-        assert!(off <= MAGNITUDE, "fitted {off:.2} off the truth: {c:?}");
     }
     assert!(
-        told_cases >= told,
-        "{told_cases} cases told from their rivals: {cases:?}"
+        right_cases >= named,
+        "{right_cases} cases named first and fitted within {MAGNITUDE}: {cases:?}"
     );
 }
 

@@ -14,6 +14,13 @@ use hbmodel::Mode;
 /// for the estimator (no resonance found).
 const STORY_SWEEP: f64 = 1.5;
 
+/// The story ends once the passages' two effects are in (`Settings::max_effects`). Run
+/// on, the workflow named the volume (gap 61.7 -> 1.62) and the oil mass (1.16), then
+/// re-fitted the valve's natural frequency (1.02) and the sensor delay (1.006): rounds of
+/// every candidate simulated with the passages' fast oil columns, which took the test
+/// from 186 CPU s to 970 (measured, session 31; 392 in session 19).
+const STORY_EFFECTS: usize = 2;
+
 #[test]
 fn the_missing_manifold_is_named_from_the_resonance_shift() {
     let mut known = Params::thesis_bench(Mode::ThreeWay);
@@ -34,9 +41,23 @@ fn the_missing_manifold_is_named_from_the_resonance_shift() {
         ..Design::standard(Kind::Sweep)
     };
     let (experiment, measured) = measure_under(&bench, &design, 4).unwrap();
-    let o = super::super::run(&known, &experiment, &measured, false).unwrap();
+    let record = super::super::Record {
+        name: "story".into(),
+        experiment,
+        measured,
+    };
+    let o = super::super::run_with(
+        &known,
+        std::slice::from_ref(&record),
+        super::super::Settings {
+            max_effects: STORY_EFFECTS,
+            ..study()
+        },
+    )
+    .unwrap();
     // the passages come in first, as a whole: with the losses (which bring the
-    // volume and inertia along) fitted near none, or volume and inertia one by one
+    // volume and inertia along) fitted near none, or volume and inertia one by one;
+    // with STORY_EFFECTS 2 nothing else comes in before them
     let steps: Vec<_> = o
         .steps
         .iter()
