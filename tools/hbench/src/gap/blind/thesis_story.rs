@@ -57,7 +57,7 @@ fn the_missing_manifold_is_named_from_the_resonance_shift() {
     .unwrap();
     // the passages come in first, as a whole: with the losses (which bring the
     // volume and inertia along) fitted near none, or volume and inertia one by one;
-    // with STORY_EFFECTS 2 nothing else comes in before them
+    // with STORY_EFFECTS 2 the run adds no third effect, so both must be among its two
     let steps: Vec<_> = o
         .steps
         .iter()
