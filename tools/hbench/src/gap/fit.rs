@@ -471,6 +471,14 @@ impl Fit {
     /// which had the bulk modulus on its -15 %), and the run named the losses first
     /// (measured, session 27).
     pub fn on_bound(&self) -> Option<(&'static str, f64)> {
+        self.bounded().into_iter().next()
+    }
+
+    /// Every fitted parameter that ended on a bound of its fit (`on_bound` is the first),
+    /// in the same order. A recalibration on its bound in every candidate's fit of a
+    /// question is held (`revision::pinned_by_all`), also when a candidate's own
+    /// parameter reached a bound before it in this list.
+    pub fn bounded(&self) -> Vec<(&'static str, f64)> {
         let switches_others = self.candidate.kind == StepKind::Add
             && self
                 .candidate
@@ -483,7 +491,7 @@ impl Fit {
             .chain(&self.carried)
             .zip(&self.values)
             .enumerate()
-            .find_map(|(k, (f, &(path, v)))| {
+            .filter_map(|(k, (f, &(path, v)))| {
                 let c = Coordinate::new(f);
                 let (a, b, w) = c.scale(v);
                 let s = (w - a) / (b - a);
@@ -491,6 +499,7 @@ impl Fit {
                 let absent = switches_others && k < own && s < ON_BOUND;
                 (narrow || absent).then_some((path, v))
             })
+            .collect()
     }
 }
 

@@ -101,6 +101,10 @@ pub struct Scored {
     /// A fitted parameter that ended on a bound of its fit, with its value.
     #[serde(skip_serializing_if = "Option::is_none")]
     pub on_bound: Option<(&'static str, f64)>,
+    /// Every fitted parameter that ended on a bound (`fit::Fit::bounded`; `on_bound` is
+    /// the first): a question holds a recalibration every candidate pinned.
+    #[serde(skip)]
+    pub bounded: Vec<&'static str>,
     /// The signals the fit took further from the data while it brought others closer
     /// (`signals::Baseline::traded`). Reported, not judged: under a lag of the pressure
     /// sensors even the hidden effect's fit trades (`signals`, session 29).
@@ -118,6 +122,7 @@ impl Scored {
             score: evidence::score(chi2, f.chi2, effective, f.values.len() as f64),
             parameters: json_values(&f.values),
             on_bound: f.on_bound(),
+            bounded: f.bounded().into_iter().map(|(p, _)| p).collect(),
             trades: before.traded(&f.signal_gaps),
         }
     }

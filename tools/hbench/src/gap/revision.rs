@@ -28,6 +28,9 @@
 //! When the step's rival is a recalibration the run made later anyway, the question
 //! between the choice and that rival, the recalibration re-fitted beside each, would ask
 //! nothing: the best two effects of the step's round stand in for it (`stand_ins`).
+//! When the step is asked because the run's later steps moved its size, the effects the
+//! run added after it are asked beside its rival (`movers`): one of them may be what the
+//! step took the place of.
 //! A question asked after another (held or widened) starts each fit from the other's fit
 //! of the same candidate as well as cold, and keeps the lower end (`fit::fit_warm`): the
 //! answer must not depend on the basin a cold start found. Whatever the answer, the
@@ -212,6 +215,12 @@ fn question<'t>(run: &Search<'t>) -> Option<Question<'t>> {
         if rivals.is_empty() {
             return None;
         }
+        // an effect added later that moved the step's size may be what the step took
+        // the place of: it is asked beside the rival (`movers`)
+        let rivals = match shifted {
+            Some(_) => movers(run, k, &mine, rivals),
+            None => rivals,
+        };
         let why = if contested.is_some() {
             "contested".to_string()
         } else if let Some((path, at_step, at_end)) = shifted {
@@ -476,37 +485,6 @@ fn value(x: f64) -> String {
     }
 }
 
-/// The recalibration of the question that every candidate's fit ended on a bound of,
-/// if there is one: then no candidate is a model the data support (`fit::Fit::on_bound`),
-/// and the bound, not the data, decided the comparison. Such a recalibration stands in
-/// for something outside the question (a sensor's lag read as softer oil, a payload read
-/// as a heavier piston); the question is asked again with it held at the model's value.
-fn pinned_by_all(asked: &Asked, recalibrate: &[String]) -> Option<String> {
-    let mut bounds = asked.decision.candidates.iter().map(|c| c.on_bound);
-    let (path, _) = bounds.next()??;
-    (bounds.all(|b| b.is_some_and(|(p, _)| p == path)) && recalibrate.iter().any(|r| r == path))
-        .then(|| path.to_string())
-}
-
-/// A candidate the question's winner does not beat: one stopped by a bound of its fit
-/// (nobody's choice, `fit::Fit::on_bound`) that still fits better than the winner, whose
-/// fit past the bound would be better still. (its name, gap, the parameter on the bound)
-///
-/// A hidden manifold volume (Rust steps, seed 2, form error; truth 0.66) was taken at
-/// step 1 at 0.82, and the run moved it to 1.13 (`MOVED_BY`). Asked again with the moving
-/// mass beside it, the volume fitted to gap 3.85 with the mass on its +15 % and the oil
-/// mass to 4.64 with the mass 0.8 % of its span inside it; the oil mass won and the run
-/// continued from it (measured, session 27).
-fn outfitted(asked: &Asked) -> Option<(String, f64, &'static str)> {
-    let won = &asked.fits[asked.won?];
-    asked
-        .fits
-        .iter()
-        .zip(&asked.decision.candidates)
-        .filter(|(f, _)| f.chi2 < won.chi2)
-        .find_map(|(f, c)| c.on_bound.map(|(path, _)| (f.name.clone(), f.gap, path)))
-}
-
 /// The parameters the question re-fitted, in words, with those it held.
 fn refitted(r: &Revision) -> String {
     let set = if r.recalibrate.is_empty() {
@@ -580,8 +558,10 @@ fn continue_with<'t>(mut s: Search<'t>, asked: &Asked) -> Search<'t> {
     s
 }
 
+mod bounds;
 mod stand_ins;
-use stand_ins::stand_ins;
+use bounds::{outfitted, pinned_by_all};
+use stand_ins::{movers, stand_ins};
 
 #[cfg(test)]
 mod tests;

@@ -195,6 +195,7 @@ fn a_fit_that_is_another_candidates_model_is_no_rival() {
         score,
         parameters: super::json_values(values),
         on_bound: None,
+        bounded: Vec::new(),
         trades: None,
     };
     let sv2 = |flow: f64| {

@@ -155,6 +155,7 @@ fn scored(effect: &str, score: f64) -> Scored {
         score,
         parameters: Default::default(),
         on_bound: None,
+        bounded: Vec::new(),
         trades: None,
     }
 }
