@@ -116,13 +116,14 @@ impl Scored {
     /// `f` scored against the model before it, `before`: a residual of chi-square `chi2`
     /// worth `effective` independent samples (`evidence::score`).
     fn of(f: &Fit, chi2: f64, effective: f64, before: &signals::Baseline) -> Scored {
+        let bounded = f.bounded();
         Scored {
             effect: f.name.clone(),
             gap: f.gap,
             score: evidence::score(chi2, f.chi2, effective, f.values.len() as f64),
             parameters: json_values(&f.values),
-            on_bound: f.on_bound(),
-            bounded: f.bounded().into_iter().map(|(p, _)| p).collect(),
+            on_bound: bounded.first().copied(),
+            bounded: bounded.iter().map(|(p, _)| *p).collect(),
             trades: before.traded(&f.signal_gaps),
         }
     }

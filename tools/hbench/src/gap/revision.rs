@@ -217,9 +217,10 @@ fn question<'t>(run: &Search<'t>) -> Option<Question<'t>> {
         }
         // an effect added later that moved the step's size may be what the step took
         // the place of: it is asked beside the rival (`movers`)
-        let rivals = match shifted {
-            Some(_) => movers(run, k, &mine, rivals),
-            None => rivals,
+        let rivals = if shifted.is_some() {
+            movers(run, k, &mine, rivals)
+        } else {
+            rivals
         };
         let why = if contested.is_some() {
             "contested".to_string()

@@ -72,16 +72,10 @@ pub(super) fn movers(run: &Search, k: usize, mine: &[&str], rivals: Vec<String>)
     };
     let mut all = rivals;
     for later in run.steps.iter().skip(k + 1) {
-        if later.kind != StepKind::Add || later.name == run.steps[k].name {
-            continue;
-        }
-        if all.contains(&later.name) {
-            continue;
-        }
         let fitted_then = round.fits.iter().find(|(_, f)| f.name == later.name);
         let apart = fitted_then
             .is_some_and(|(_, f)| f.candidate.fitted.iter().all(|x| !mine.contains(&x.path)));
-        if apart {
+        if later.kind == StepKind::Add && apart && !all.contains(&later.name) {
             all.push(later.name.clone());
         }
     }
