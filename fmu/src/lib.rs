@@ -192,7 +192,17 @@ pub unsafe extern "C" fn fmi2Instantiate(
             }
             p
         }
-        _ => std::ptr::null_mut(),
+        Ok(None) => std::ptr::null_mut(),
+        Err(_) => {
+            // the closure's logger went down with the panic: a fresh one, from the same
+            // host arguments, tells the host why it gets NULL (errors are always logged)
+            let _ = catch_unwind(AssertUnwindSafe(|| {
+                let name = c_str(instance_name).unwrap_or("");
+                Logger::new(functions, name, logging_on != 0)
+                    .error("fmi2Instantiate: internal error (panic caught)");
+            }));
+            std::ptr::null_mut()
+        }
     }
 }
 

@@ -173,9 +173,7 @@ impl<'a> Problem<'a> {
     fn params_at(&self, z: &DVector<f64>) -> Params {
         let mut p = self.base.clone();
         for (c, zi) in self.coords.iter().zip(z.iter()) {
-            param(c.fitted.path)
-                .expect("registered")
-                .set(&mut p, c.value(*zi));
+            super::recalibrate::set_fitted(&mut p, c.fitted.path, c.value(*zi));
         }
         p
     }

@@ -245,9 +245,8 @@ pub fn with_hidden(base: &Params, hidden: &[Effect], drawn: &[(&'static str, f64
         }
     }
     for &(path, v) in drawn {
-        hbmodel::params::param(path)
-            .expect("registered")
-            .set(&mut p, v);
+        // SV2, when its own valve, shares SV1's spool lands and dynamics, as in the fits
+        super::recalibrate::set_fitted(&mut p, path, v);
     }
     p
 }

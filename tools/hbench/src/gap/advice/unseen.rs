@@ -29,7 +29,8 @@ fn at_plausible_middle(model: &Params, c: &Candidate) -> Option<Params> {
         } else {
             0.5 * (lo + hi)
         };
-        hbmodel::params::param(f.path)?.set(&mut p, v);
+        hbmodel::params::param(f.path)?;
+        super::super::recalibrate::set_fitted(&mut p, f.path, v);
     }
     Some(p)
 }
