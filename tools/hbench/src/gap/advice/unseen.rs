@@ -29,7 +29,7 @@ fn at_plausible_middle(model: &Params, c: &Candidate) -> Option<Params> {
         } else {
             0.5 * (lo + hi)
         };
-        hbmodel::params::param(f.path)?;
+        hbmodel::params::param(f.path)?; // an unregistered path: no such model
         super::super::recalibrate::set_fitted(&mut p, f.path, v);
     }
     Some(p)

@@ -402,10 +402,14 @@ mod tests {
     /// parameters a few percent off) the known model is recalibrated to the bench first,
     /// and the form error's residual then left (gap 0.95, measured) stands beside each
     /// model's: a 0.31 ms sensor delay stays told from the entrained air (ln B 1471 +- 17,
-    /// measured); an internal leakage 27 times the thesis's is, on these steps and beside
-    /// that lag, a null bias of the valves (ln B 0.0, measured).
+    /// measured); an internal leakage 27 times the thesis's is told from SV1's null bias,
+    /// its closest rival, by far less (ln B 16.0 +- 3.5, its fit's gap 0.034 against the
+    /// bias's 0.206; measured, session 33). Until session 33 it read ln B 0.0 there: the
+    /// judge's recalibrated model re-fits SV2's flow and bias with the rest, which makes
+    /// SV2 its own valve, and the leakage's recalibration then moved SV1's null leakage
+    /// alone, while the bench's two valves leak alike (`recalibrate::set_fitted`).
     #[test]
-    fn beside_a_form_error_a_delay_is_told_and_a_leakage_is_not() {
+    fn beside_a_form_error_a_delay_is_told_far_more_clearly_than_a_leakage() {
         let judge = |e: Effect| {
             let s = Setup::new(Simulator::Rust, true, &[e], 2);
             rivalry(&s, &[e], &[Kind::Steps], false)
@@ -416,7 +420,8 @@ mod tests {
         assert!(delay.told() && delay.ln_bayes > 300.0, "{delay:?}");
         assert!((0.5..1.5).contains(&delay.form_gap), "{delay:?}");
         let leak = judge(Effect::InternalLeakage);
-        assert!(!leak.told(), "{leak:?}");
+        assert!(leak.told() && leak.ln_bayes < 50.0, "{leak:?}");
+        assert!(leak.hidden_gap < leak.rival_gap, "{leak:?}");
         assert!(leak.rival.starts_with("recalibrate"), "{leak:?}");
     }
 }
