@@ -431,6 +431,9 @@ pub fn write(out: &Path, o: &Outcome, model: Option<&Path>) -> Result<(), String
     }
     if let Some(r) = &o.revision {
         let _ = writeln!(md, "\n## Step {} asked again\n\n{}.", r.step + 1, r.verdict);
+        for v in &r.others {
+            let _ = writeln!(md, "\nAlso asked: {v}.");
+        }
     }
     if !o.refusals.is_empty() {
         md.push_str("\n## Refused: better on what they were fitted on, worse on the rest\n\n");

@@ -63,6 +63,15 @@ fn run_taking<'t>(
     s
 }
 
+/// The fit of the recalibration `name` of the known model.
+fn recalibration_fit(target: &Target, known: &hbmodel::Params, name: &str) -> crate::gap::fit::Fit {
+    let c = recalibrate::candidates(known, 0.15, &[])
+        .into_iter()
+        .find(|c| c.name() == name)
+        .expect("the recalibration is open");
+    fit(target, known, &c, &[])
+}
+
 /// A sensor delay hidden in +-10 mm steps. A run that took a valve lag at its first
 /// step over the delay by a hair is asked again, names the delay clearly, and is
 /// continued from it to a better end; a run that took the delay over the valve lag
@@ -247,6 +256,37 @@ fn a_clear_step_is_asked_again_only_when_the_run_ends_far_above_the_floor_or_mov
     assert_eq!(q.k, 0);
     assert_eq!(q.later, ["sv1.rated_flow"]);
     assert_eq!(q.rivals, ["sensor_delay", "dry_friction"], "{}", q.why);
+
+    // in a run that ended far above the floor, the step's rival is asked
+    // with the round's other effects that paid their price beside it (`stand_ins`)
+    let rival_is = |run: &mut Search, name: &str| {
+        run.steps[0].candidates[1].effect = name.into();
+        if let Some(p) = run.steps[0].preference.as_mut() {
+            p.runner_up = name.into();
+        }
+    };
+    rival_is(&mut run, "sensor_delay");
+    let q = question(&run).expect("a run far above the floor");
+    assert_eq!(q.rivals, ["sensor_delay", "dry_friction"], "{}", q.why);
+    rival_is(&mut run, "internal_leakage");
+    let q = question(&run).expect("a run far above the floor");
+    assert_eq!(
+        q.rivals,
+        ["internal_leakage", "sensor_delay", "dry_friction"],
+        "{}",
+        q.why
+    );
+    // a recalibration taken clearly over another recalibration is a question of values,
+    // not of what the model lacks: a run far above the floor does not ask it, and asks
+    // it when its rival adds an effect
+    run.steps[0].kind = StepKind::Recalibrate;
+    assert_eq!(question(&run).map(|q| q.k), Some(0));
+    rival_is(&mut run, "sv1.null_bias");
+    run.rounds[0]
+        .fits
+        .push((50.0, recalibration_fit(&target, &s.known, "sv1.null_bias")));
+    assert_eq!(advice::rival(&run.steps[0]), Some("sv1.null_bias"));
+    assert!(question(&run).is_none());
     let listed_three = listed(&["a".into(), "b".into(), "c".into()]);
     assert_eq!(listed_three, "`a`, `b` and `c`");
 }
