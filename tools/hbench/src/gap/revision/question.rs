@@ -52,8 +52,10 @@ pub(super) struct Question<'t> {
 /// The steps of the ended run `run` worth asking again, earliest first: contested, an added
 /// effect whose size the run's later steps moved by more than MOVED_BY (`moved`), or
 /// (when the run ended above FAR_ABOVE_FLOOR_GAP) any step that adds an effect or whose
-/// rival does; in the last two its rival must have paid its price. Its choice and rival
-/// fit no parameter in common, and the run recalibrated something after it.
+/// rival does; in the last two its rival must have paid its price. In a run that ended
+/// that far, a contested step between two recalibrations is not asked either (measured
+/// this way in session 34; whether it should be is not). Its choice and rival fit no
+/// parameter in common, and the run recalibrated something after it.
 ///
 /// A run far above the floor lacks something in its structure; a recalibration taken
 /// clearly over another recalibration is a question of values. On the peer bench every
