@@ -144,31 +144,27 @@ pub const QUESTIONS: usize = 2;
 /// there is none. The report is the question that continued the run, else the first;
 /// the others' verdicts are listed beside it (`Revision::others`).
 pub fn reask<'t>(run: &Search<'t>, within: f64, progress: bool) -> Option<Reasked<'t>> {
-    let mut first: Option<Reasked<'t>> = None;
-    let mut others = Vec::new();
     let most = if run.gap > FAR_ABOVE_FLOOR_GAP {
         QUESTIONS
     } else {
         1
     };
+    // the questions asked that left the run standing, in order
+    let mut stood: Vec<Reasked<'t>> = Vec::new();
     for q in questions(run).into_iter().take(most) {
         let Some(mut asked) = ask_again(run, q, within, progress) else {
             continue;
         };
         if asked.kept.is_some() {
-            asked.report.others = first.iter().map(|f| f.report.verdict.clone()).collect();
+            asked.report.others = stood.into_iter().map(|s| s.report.verdict).collect();
             return Some(asked);
         }
-        if first.is_none() {
-            first = Some(asked);
-        } else {
-            others.push(asked.report.verdict);
-        }
+        stood.push(asked);
     }
-    first.map(|mut f| {
-        f.report.others = others;
-        f
-    })
+    let mut stood = stood.into_iter();
+    let mut first = stood.next()?;
+    first.report.others = stood.map(|s| s.report.verdict).collect();
+    Some(first)
 }
 
 /// Ask one question of `questions` (see the module's words); None when it cannot be asked.
