@@ -24,7 +24,7 @@ use serde::Serialize;
 use super::advice::AS_IS;
 use super::effects::{self, Candidate, Fitted, StepKind};
 use super::evidence::{self, Preference};
-use super::fit::{fit, fit_warm, Fit, Target};
+use super::fit::{fit, fit_from, fit_warm, Fit, Target};
 use super::holdout::{Judge, Validation};
 use super::{effective_samples, recalibrate, selection, signals, target_of, Record, Scored};
 
@@ -203,25 +203,64 @@ pub fn decide(
         recalibrate,
         (&target, &names),
         (within, progress),
-        None,
+        Start::Cold,
     )?;
     let decided = asked.decided(model);
     Ok((asked.decision, decided))
 }
 
-/// `decide` on a fitting target whose records are called `record_names`. With `warm`, a
-/// question asked before between the same candidates on the same target with other
-/// recalibrations, each fit is also started from that question's fit of the same
-/// candidate (`fit::fit_warm`), so that the answer does not depend on the path a cold
-/// start took.
+/// Where a question's fits start (`ask`), beside an earlier question asked between the
+/// same candidates on the same target with other recalibrations.
+#[derive(Clone, Copy)]
+pub enum Start<'a> {
+    /// Cold: the first parameter screened over its range (`fit::fit`).
+    Cold,
+    /// Cold, and from the earlier question's fit of the same candidate, the lower end
+    /// kept (`fit::fit_warm`), so that the answer does not depend on the path a cold start
+    /// took.
+    Also(&'a Asked),
+    /// From the earlier question's fit alone (`fit::fit_from`): for a question that
+    /// contains the earlier one, whose fits it cannot end above; half the fits of `Also`.
+    Only(&'a Asked),
+}
+
+impl<'a> Start<'a> {
+    fn earlier(self) -> Option<&'a Asked> {
+        match self {
+            Start::Cold => None,
+            Start::Also(a) | Start::Only(a) => Some(a),
+        }
+    }
+
+    /// `c` with `carried` fitted from `base`, started as `self` says from `warm`, the
+    /// earlier question's fit of `c` (a cold fit when there is none).
+    fn fit(
+        self,
+        target: &Target,
+        base: &Params,
+        c: &Candidate,
+        carried: &[Fitted],
+        warm: Option<&Fit>,
+    ) -> Fit {
+        match (self, warm) {
+            (Start::Also(_), Some(w)) => fit_warm(target, base, c, carried, &w.params),
+            (Start::Only(_), Some(w)) => fit_from(target, base, c, carried, &w.params),
+            _ => fit(target, base, c, carried),
+        }
+    }
+}
+
+/// `decide` on a fitting target whose records are called `record_names`, each fit
+/// started as `start` says.
 pub fn ask(
     model: &Params,
     between: &[String],
     recalibrate: &[String],
     (target, record_names): (&Target, &[String]),
     (within, progress): (f64, bool),
-    warm: Option<&Asked>,
+    start: Start,
 ) -> Result<Asked, String> {
+    let warm = start.earlier();
     let mut names: Vec<&str> = Vec::new();
     for n in between.iter().map(String::as_str).filter(|n| *n != AS_IS) {
         if !names.contains(&n) {
@@ -252,10 +291,13 @@ pub fn ask(
             signature: "the known model's recalibrations",
             switches_on,
         };
-        match warm.and_then(|w| w.baseline.as_ref()) {
-            Some(w) => fit_warm(target, model, &refit, &[], &w.params),
-            None => fit(target, model, &refit, &[]),
-        }
+        start.fit(
+            target,
+            model,
+            &refit,
+            &[],
+            warm.and_then(|w| w.baseline.as_ref()),
+        )
     });
     let model = baseline.as_ref().map_or(model, |b| &b.params);
     let gap = target.gap(model);
@@ -266,10 +308,7 @@ pub fn ask(
     let bar = crate::parallel::bar(candidates.len(), "deciding", progress);
     let fits = crate::parallel::map(&candidates, &bar, Candidate::name, |c| {
         let before = warm.and_then(|w| w.fits.iter().find(|f| f.name == c.name()));
-        match before {
-            Some(w) => fit_warm(target, model, c, &carried, &w.params),
-            None => fit(target, model, c, &carried),
-        }
+        start.fit(target, model, c, &carried, before)
     });
     let chi2 = gap * gap * n;
     let before = signals::Baseline::of(target, record_names, model);

@@ -382,16 +382,29 @@ pub fn fit_warm(
     warm: &Params,
 ) -> Fit {
     let cold = fit(target, base, c, carried);
-    let mut problem = problem_for(target, base, c, carried);
-    let rtol = problem.base.solver.rtol;
-    problem.at(problem.coordinates_of(warm));
-    let (problem, _report) = optimiser(rtol).minimize(problem);
-    let warmed = ended(&problem, c, carried);
+    let warmed = fit_from(target, base, c, carried, warm);
     if warmed.chi2 < cold.chi2 {
         warmed
     } else {
         cold
     }
+}
+
+/// `c` with `carried` fitted from `warm` alone, without `fit`'s screen: for a question
+/// that contains the one `warm` fitted (one more parameter beside it, at `warm`'s value),
+/// whose fit this one cannot end above.
+pub fn fit_from(
+    target: &Target,
+    base: &Params,
+    c: &Candidate,
+    carried: &[Fitted],
+    warm: &Params,
+) -> Fit {
+    let mut problem = problem_for(target, base, c, carried);
+    let rtol = problem.base.solver.rtol;
+    problem.at(problem.coordinates_of(warm));
+    let (problem, _report) = optimiser(rtol).minimize(problem);
+    ended(&problem, c, carried)
 }
 
 /// The problem of fitting `c` with `carried` from `base`, with `c`'s effect and what it

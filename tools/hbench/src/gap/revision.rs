@@ -40,7 +40,7 @@
 
 use serde::Serialize;
 
-use super::decision::{self, Asked, Decision};
+use super::decision::{self, Asked, Decision, Start};
 use super::effects::StepKind;
 use super::evidence::{self, CLEAR_LN_BAYES};
 use super::fit;
@@ -192,15 +192,15 @@ fn ask_again<'t>(
     let recalibrate = decision::open(from, within, &paths, &between);
     let (target, names) = run.target();
     // each question after the first starts its fits from the one before as well
-    // (`fit::fit_warm`)
-    let ask = |recalibrate: &[String], warm: Option<&Asked>| {
+    // (`decision::Start`)
+    let ask = |recalibrate: &[String], start: Start| {
         decision::ask(
             from,
             &between,
             recalibrate,
             (target, names),
             (within, progress),
-            warm,
+            start,
         )
         .ok()
     };
@@ -220,7 +220,7 @@ fn ask_again<'t>(
             })
     };
     let mut recalibrate = recalibrate;
-    let mut asked = ask(&recalibrate, None)?;
+    let mut asked = ask(&recalibrate, Start::Cold)?;
     let mut held = Vec::new();
     while asked.won.is_none() {
         let Some(p) = pinned_by_all(&asked, &recalibrate) else {
@@ -228,7 +228,7 @@ fn ask_again<'t>(
         };
         recalibrate.retain(|r| *r != p);
         held.push(p);
-        asked = ask(&recalibrate, Some(&asked))?;
+        asked = ask(&recalibrate, Start::Also(&asked))?;
     }
     let mut widened_with = None;
     if run.gap > FAR_ABOVE_FLOOR_GAP {
@@ -322,9 +322,9 @@ fn ask_again<'t>(
     })
 }
 
-/// A question asked with the recalibrations given, started from the earlier question given
-/// as well (`decision::ask`'s `warm`); None when it cannot be asked.
-type AskWith<'a> = dyn Fn(&[String], Option<&Asked>) -> Option<Asked> + 'a;
+/// A question asked with the recalibrations given, its fits started as `decision::Start`
+/// says; None when it cannot be asked.
+type AskWith<'a> = dyn Fn(&[String], Start) -> Option<Asked> + 'a;
 
 /// A question asked again with one more recalibration beside its candidates, each the
 /// known model's parameters and those of the effects on, when one of them pays its price:
@@ -351,7 +351,14 @@ type AskWith<'a> = dyn Fn(&[String], Option<&Asked>) -> Option<Asked> + 'a;
 /// A set is worth the best of its candidates that could be taken (`Asked::
 /// best_eligible_chi2`): with the dead volume beside it, the seed-1 hidden volume's
 /// question fitted both candidates to that volume's bound and was kept as the widest, for
-/// no winner (session 26). Each wider question starts its fits from the plain one's too.
+/// no winner (session 26).
+///
+/// Each wider question starts its fits from the plain one's alone (`Start::Only`): it
+/// contains the plain question, so its fits cannot end above the plain ones, and the
+/// cold start beside them doubled what widening cost: it asks every open recalibration
+/// in turn. On CI's peer sample (steps, seed 1: the valve asymmetry, the volume, the
+/// sensor delay, nothing hidden; side by side in one run) the four cases took 368 CPU s
+/// with the cold starts and 299 without, with the same answers (measured, session 35).
 fn widened(
     from: &hbmodel::Params,
     between: &[String],
@@ -374,8 +381,8 @@ fn widened(
     let mut best: Option<(f64, Vec<String>, Asked)> = None;
     for p in extra {
         let set: Vec<String> = recalibrate.iter().cloned().chain([p]).collect();
-        // started from the plain question too, each wider fit ends at or below its fit
-        let Some(a) = ask(&set, Some(&asked)) else {
+        // started from the plain question, each wider fit ends at or below its fit
+        let Some(a) = ask(&set, Start::Only(&asked)) else {
             continue;
         };
         // a wider question is worth its best candidate that could be taken: one on a bound

@@ -289,3 +289,43 @@ fn a_screen_with_two_valleys_gives_two_starts() {
         vec![4]
     );
 }
+
+/// A fit started from the fit of a question it contains (one more parameter carried,
+/// at the model's value there) ends at or below that fit and moves the new parameter:
+/// what lets a widened question start from the plain one alone (`fit_from`,
+/// `decision::Start::Only`). The oil mass's form error leaves the viscous friction off
+/// its built-in 400 N s/m.
+#[test]
+fn a_fit_started_from_a_question_it_contains_ends_at_or_below_it() {
+    use crate::gap::blind::Setup;
+    use crate::gap::effects::candidate;
+    use crate::gap::hide::Kind;
+    use crate::gap::recalibrate;
+    use crate::gap::tests::record;
+    use crate::gap::variants::Simulator;
+
+    let s = Setup::new(Simulator::Rust, true, &[Effect::ManifoldInertia], 1);
+    let records = [record(&s, Kind::Steps, 1)];
+    let target = crate::gap::target_of(&records).expect("a target");
+    let viscous = recalibrate::candidates(&s.known, 0.15, &[])
+        .into_iter()
+        .find(|c| c.name() == "actuator.viscous_friction")
+        .expect("the viscous friction is on");
+    let c = candidate(Effect::ManifoldInertia).expect("a candidate");
+    let plain = fit(&target, &s.known, &c, &[]);
+    let wider = fit_from(&target, &s.known, &c, &viscous.fitted, &plain.params);
+    assert!(
+        wider.chi2 <= plain.chi2,
+        "{} against {}",
+        wider.gap,
+        plain.gap
+    );
+    let path = "actuator.viscous_friction";
+    let at = |p: &Params| param(path).expect("registered").get(p);
+    assert!(
+        (at(&wider.params) / at(&plain.params) - 1.0).abs() > 1e-3,
+        "{} unmoved",
+        at(&wider.params)
+    );
+    assert_eq!(at(&plain.params), at(&s.known), "the plain fit left it");
+}

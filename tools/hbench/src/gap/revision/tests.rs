@@ -139,9 +139,9 @@ fn a_contested_step_is_asked_again_and_the_run_continued_from_a_clear_rival() {
     assert!(r.report.continued.is_none());
 }
 
-/// A step taken clearly (ln B 10) is asked again only when the run ended far above
-/// the noise floor or, for an added effect, moved its size by more than MOVED_BY, and
-/// only if its rival paid its price; a rival the run recalibrated anyway is stood in for
+/// A step taken clearly (ln B 10) is asked again only when it added an effect and the
+/// run ended far above the noise floor or moved its size by more than MOVED_BY, and
+/// only if its rival paid its price; a contested one is asked however the run ended; a rival the run recalibrated anyway is stood in for
 /// by the best effects of the step's round, and an effect the run added after a step
 /// whose size it moved is asked beside the rival.
 #[test]
@@ -276,17 +276,22 @@ fn a_clear_step_is_asked_again_only_when_the_run_ends_far_above_the_floor_or_mov
         "{}",
         q.why
     );
-    // a recalibration taken clearly over another recalibration is a question of values,
-    // not of what the model lacks: a run far above the floor does not ask it, and asks
-    // it when its rival adds an effect
+    // a recalibration taken clearly is a question of values, not of what the model
+    // lacks: a run far above the floor does not ask it, whether its rival adds an effect
+    // or re-fits another recalibration; contested, it is asked either way
     run.steps[0].kind = StepKind::Recalibrate;
-    assert_eq!(question(&run).map(|q| q.k), Some(0));
+    assert!(question(&run).is_none(), "rival adds an effect");
     rival_is(&mut run, "sv1.null_bias");
     run.rounds[0]
         .fits
         .push((50.0, recalibration_fit(&target, &s.known, "sv1.null_bias")));
     assert_eq!(advice::rival(&run.steps[0]), Some("sv1.null_bias"));
-    assert!(question(&run).is_none());
+    assert!(question(&run).is_none(), "rival re-fits a recalibration");
+    let p = run.steps[0].preference.as_mut().expect("a preference");
+    p.ln_bayes_factor = 0.5 * CLEAR_LN_BAYES;
+    assert!(advice::contested(&run.steps[0]).is_some());
+    let q = question(&run).expect("a contested step of a run far above the floor");
+    assert_eq!((q.k, q.why.as_str()), (0, "contested"));
     let listed_three = listed(&["a".into(), "b".into(), "c".into()]);
     assert_eq!(listed_three, "`a`, `b` and `c`");
 }
@@ -309,14 +314,14 @@ fn a_question_is_widened_only_by_a_recalibration_that_pays_its_price() {
     // the set's last parameter decides its fit: `pays` halves the chi-square, `cheap`
     // gains half its price, `fails` cannot be asked, `pinned` quarters it with every
     // candidate on its bound, the others change nothing; each wider question is started
-    // from the plain one
+    // from the plain one alone
     let asked = RefCell::new(Vec::<Vec<String>>::new());
     let fake = |gains: bool| {
         let (plain, asked) = (&plain, &asked);
-        move |set: &[String], warm: Option<&Asked>| -> Option<Asked> {
+        move |set: &[String], start: Start| -> Option<Asked> {
             assert!(
-                warm.is_some_and(|w| w.best_chi2() == chi2),
-                "started from the plain"
+                matches!(start, Start::Only(w) if w.best_chi2() == chi2),
+                "started from the plain alone"
             );
             asked.borrow_mut().push(set.to_vec());
             let last = set.last()?;
@@ -398,7 +403,7 @@ fn delay_or_lag() -> (Setup, [String; 2], Asked) {
         &[],
         (&target, &names),
         (0.15, false),
-        None,
+        Start::Cold,
     )
     .expect("the question");
     (s, between, asked)
@@ -549,29 +554,29 @@ fn a_question_asked_again_starts_from_the_fits_before_it() {
     let both = set(&["sv1.null_leakage", "actuator.viscous_friction"]);
     // at the workflow's tolerance, as the run asks it
     let known = crate::gap::at_rtol(&s.known, crate::gap::RTOL);
-    let ask = |recalibrate: &[String], warm: Option<&Asked>| {
+    let ask = |recalibrate: &[String], start: Start| {
         decision::ask(
             &known,
             &between,
             recalibrate,
             (&target, &names),
             (0.15, false),
-            warm,
+            start,
         )
         .expect("the question")
     };
-    let first = ask(&with_bulk, None);
+    let first = ask(&with_bulk, Start::Cold);
     assert_eq!(
         pinned_by_all(&first, &with_bulk).as_deref(),
         Some("fluid.bulk_modulus"),
         "{}",
         first.decision.verdict
     );
-    let again = ask(&both, Some(&first));
+    let again = ask(&both, Start::Also(&first));
     let d = &again.decision;
     // started cold, the oil mass's fit ends in another basin (24.61, measured) and the
     // question cannot tell the two apart
-    let cold = ask(&both, None);
+    let cold = ask(&both, Start::Cold);
     let oil = |a: &Asked| {
         a.fits
             .iter()
