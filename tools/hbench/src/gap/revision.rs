@@ -128,14 +128,14 @@ pub struct Reasked<'t> {
 /// How many steps of a run that ended far above the floor (`FAR_ABOVE_FLOOR_GAP`) are
 /// asked again at most: the earliest worth asking (`questions`), and when the run stands
 /// after it, the next. A run nearer the floor asks one: little is left for a second
-/// question to explain. On the peer bench the first question of a run far above the
-/// floor was often its first step, SV2's flow re-fitted over an added effect (ln B 39-116
-/// when asked again), which stands. The manifold inertia hidden there (steps, seed 1,
-/// scale 1.44) took the volume at step 2, and the question never reached it; asked
-/// second, with SV1's null leakage and rated flow beside each, the inertia won by ln B
-/// 639 and the run continued to gap 3.88 against 6.57, the inertia at 1.41 (measured,
-/// session 34). Each question costs a few fits per candidate and per recalibration it is
-/// widened by; two bound a run's cost.
+/// question to explain. In session 34, when a run far above the floor also asked its
+/// clear recalibrations, the manifold inertia hidden on the peer's steps (seed 1, scale
+/// 1.44) was named by the second question: the first, SV2's flow at step 1, stood, and
+/// the second, the volume taken at step 2, named the inertia by ln B 639 (the run
+/// continued to gap 3.88 against 6.57). Since session 35 that step is the first
+/// question, and none of the 24 peer step records of seeds 1-2 asks a second; two still
+/// bound a run's cost where several added effects are worth asking. Each question costs a
+/// few fits per candidate and per recalibration it is widened by.
 pub const QUESTIONS: usize = 2;
 
 /// Ask the steps `questions` finds in the ended run `run` again (see the module's words),
