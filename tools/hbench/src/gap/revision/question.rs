@@ -62,8 +62,9 @@ pub(super) struct Question<'t> {
 /// added effect or SV1's null bias. Session 34 asked the clear recalibrations whose
 /// rival adds an effect: they were asked in 17 of the 24 peer step records of seeds 1
 /// and 2 (SV2's flow at step 1, SV1's null leakage at step 2 or 3), and the run stood
-/// every time (ln B 7.8-116 for the recalibration). Session 33's 15 such questions
-/// stood too. Not asking them, CI's peer sample (steps, seed 1: the valve asymmetry,
+/// every time (ln B 7.8-116 for the recalibration). In session 33 SV2's flow was the
+/// question in 19 of those records (over SV1's null bias in 15, over an added effect
+/// in 4), and they stood too. Not asking them, CI's peer sample (steps, seed 1: the valve asymmetry,
 /// the volume, the sensor delay, nothing hidden) took 368 CPU s against 469, side by
 /// side in one run, with the same answers (measured, session 35).
 /// An added effect, asked, can fall. The payload hidden there (seed 1, 3.18 kg) was
