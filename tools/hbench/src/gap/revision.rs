@@ -191,7 +191,8 @@ fn ask_again<'t>(
         .collect();
     let recalibrate = decision::open(from, within, &paths, &between);
     let (target, names) = run.target();
-    // each question after the first starts its fits from the one before as well
+    // the first question starts cold; one asked again with a recalibration held starts
+    // from the one before as well, a widened one from the plain one alone
     // (`decision::Start`)
     let ask = |recalibrate: &[String], start: Start| {
         decision::ask(
