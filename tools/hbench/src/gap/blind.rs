@@ -22,6 +22,25 @@ use super::hide::{measure_truth, truth, Kind, Truth};
 use super::variants::{section_4_4, FormError, Simulator};
 use super::MIN_IMPROVEMENT;
 
+/// The parameters the run's recalibration steps re-fitted, each once, in the order first
+/// re-fitted: a step is named after its parameter, a continued run's re-fit before its
+/// question after every parameter it re-fitted (`revision::REFITTED`).
+fn recalibrated(steps: &[super::Step]) -> Vec<String> {
+    let mut out: Vec<String> = Vec::new();
+    for s in steps.iter().filter(|s| s.kind == StepKind::Recalibrate) {
+        let paths: Vec<&str> = match s.name.strip_prefix(super::revision::REFITTED) {
+            Some(list) => list.split(", ").collect(),
+            None => vec![s.name.as_str()],
+        };
+        for p in paths {
+            if !out.iter().any(|o| o == p) {
+                out.push(p.to_string());
+            }
+        }
+    }
+    out
+}
+
 mod advised;
 mod case;
 pub use case::Case;
@@ -266,12 +285,7 @@ pub fn case_advised(
         // an effect's brought-along requirements are named with it, after it;
         // recalibrations are counted apart
         named: named(&outcome, base, hidden),
-        recalibrated: outcome
-            .steps
-            .iter()
-            .filter(|s| s.kind == StepKind::Recalibrate)
-            .map(|s| s.name.clone())
-            .collect(),
+        recalibrated: recalibrated(&outcome.steps),
         truth: value,
         fitted,
         fitted_at_end: fitted

@@ -28,9 +28,15 @@ pub struct Record<'a> {
     pub experiment: &'a Experiment,
     /// (signal, noise standard deviation) of the compared signals present in the data.
     pub noise: Vec<(&'static str, f64)>,
-    /// The samples compared (all of them but in a held-out check, `holdout`): the whole
-    /// record is simulated, its states carry through the samples left out.
-    pub window: Range<usize>,
+    /// The samples compared, as ranges in time order (all of them but in a held-out
+    /// check, `holdout`): the whole record is simulated, its states carry through the
+    /// samples left out.
+    pub window: Vec<Range<usize>>,
+}
+
+/// One contiguous range of samples as a record's compared samples (`Record::window`).
+pub fn span(samples: Range<usize>) -> Vec<Range<usize>> {
+    std::iter::once(samples).collect()
 }
 
 impl<'a> Record<'a> {
@@ -40,7 +46,7 @@ impl<'a> Record<'a> {
         experiment: &'a Experiment,
         noise: Vec<(&'static str, f64)>,
     ) -> Self {
-        let window = 0..measured.time.len();
+        let window = span(0..measured.time.len());
         Record {
             measured,
             experiment,
@@ -49,8 +55,8 @@ impl<'a> Record<'a> {
         }
     }
 
-    /// The same record compared on `window` only.
-    pub fn part(&self, window: Range<usize>) -> Self {
+    /// The same record compared on the samples of `window` only.
+    pub fn part(&self, window: Vec<Range<usize>>) -> Self {
         Record {
             window,
             noise: self.noise.clone(),
@@ -60,7 +66,7 @@ impl<'a> Record<'a> {
 
     /// Samples per signal compared.
     pub fn samples(&self) -> usize {
-        self.window.len()
+        self.window.iter().map(ExactSizeIterator::len).sum()
     }
 
     /// Residual samples this record contributes.
@@ -73,8 +79,10 @@ impl<'a> Record<'a> {
         let sim = simulate(p, self.experiment, self.measured).ok()?;
         for (name, sigma) in &self.noise {
             let (m, s) = (self.measured.get(name)?, sim.get(name)?);
-            let (m, s) = (m.get(self.window.clone())?, s.get(self.window.clone())?);
-            r.extend(m.iter().zip(s).map(|(m, s)| (s - m) / sigma));
+            for w in &self.window {
+                let (m, s) = (m.get(w.clone())?, s.get(w.clone())?);
+                r.extend(m.iter().zip(s).map(|(m, s)| (s - m) / sigma));
+            }
         }
         Some(())
     }

@@ -445,6 +445,10 @@ fn refitted(r: &Revision) -> String {
     }
 }
 
+/// How the recalibration step a continued run takes before its question's winner is
+/// named, its re-fitted parameters' paths following, comma-separated.
+pub const REFITTED: &str = "re-fitted before re-asking: ";
+
 /// The search before the step asked, with the question's re-fitted model and its
 /// winner taken as steps.
 fn continue_with<'t>(mut s: Search<'t>, asked: &Asked) -> Search<'t> {
@@ -452,7 +456,7 @@ fn continue_with<'t>(mut s: Search<'t>, asked: &Asked) -> Search<'t> {
     if let Some(b) = &asked.baseline {
         let mut step = step_of(b, &s.model, s.gap, Vec::new(), d.effective_samples, None);
         step.name = format!(
-            "re-fitted before re-asking: {}",
+            "{REFITTED}{}",
             b.candidate
                 .fitted
                 .iter()

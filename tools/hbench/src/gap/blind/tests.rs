@@ -153,3 +153,37 @@ fn a_study_at_an_impossible_tolerance_is_refused() {
     assert!(err.starts_with("--rtol 1:"), "{err}");
     assert!(!out.exists(), "nothing written");
 }
+
+/// A case lists each parameter its run recalibrated once, by path: a continued run's
+/// re-fit before its question (one step, several parameters) is read as its parameters.
+#[test]
+fn a_case_lists_the_recalibrated_parameters_by_path() {
+    let step = |kind: StepKind, name: &str| super::super::Step {
+        kind,
+        effect: None,
+        name: name.to_string(),
+        brings: Vec::new(),
+        parameters: Default::default(),
+        gap_before: 2.0,
+        gap_after: 1.0,
+        candidates: Vec::new(),
+        effective_samples: 100.0,
+        preference: None,
+        validation: None,
+        spread: Vec::new(),
+        signals: Vec::new(),
+    };
+    let refit = format!(
+        "{}sv2.rated_flow, sv1.null_leakage",
+        super::super::revision::REFITTED
+    );
+    let steps = [
+        step(StepKind::Recalibrate, "sv2.rated_flow"),
+        step(StepKind::Add, "dry_friction"),
+        step(StepKind::Recalibrate, &refit),
+    ];
+    assert_eq!(
+        recalibrated(&steps),
+        vec!["sv2.rated_flow".to_string(), "sv1.null_leakage".to_string()]
+    );
+}
