@@ -72,20 +72,23 @@ fn sweeps_in_frequency(experiment: &Experiment, measured: &Measured) -> bool {
     let Some(x) = measured.get(column) else {
         return false;
     };
+    let n = x.len().max(1) as f64;
+    let mean = x.iter().sum::<f64>() / n;
+    let sd = (x.iter().map(|v| (v - mean).powi(2)).sum::<f64>() / n).sqrt();
+    // a tenth of the standard deviation of hysteresis: the converter's noise on a
+    // recorded command does not count as crossings
     let middle = x.len() / 2;
-    let (a, b) = (crossings(x, &x[..middle]), crossings(x, &x[middle..]));
+    let (a, b) = (
+        crossings(&x[..middle], mean, 0.1 * sd),
+        crossings(&x[middle..], mean, 0.1 * sd),
+    );
     // one more than the count on each side: a half without a crossing is a low band too
     let (a, b) = ((a + 1) as f64, (b + 1) as f64);
     a.max(b) >= OTHER_BAND * a.min(b)
 }
 
-/// Times `part` crosses the mean of `whole`, with a hysteresis of a tenth of its standard
-/// deviation so that the converter's noise on a recorded command does not count.
-fn crossings(whole: &[f64], part: &[f64]) -> usize {
-    let n = whole.len().max(1) as f64;
-    let mean = whole.iter().sum::<f64>() / n;
-    let sd = (whole.iter().map(|x| (x - mean).powi(2)).sum::<f64>() / n).sqrt();
-    let h = 0.1 * sd;
+/// Times `part` crosses `mean`, a side counting once it is left by more than `h`.
+fn crossings(part: &[f64], mean: f64, h: f64) -> usize {
     let mut side = 0i8;
     let mut count = 0;
     for x in part {

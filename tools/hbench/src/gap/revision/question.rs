@@ -64,9 +64,9 @@ pub(super) struct Question<'t> {
 /// and 2 (SV2's flow at step 1, SV1's null leakage at step 2 or 3), and the run stood
 /// every time (ln B 7.8-116 for the recalibration). In session 33 SV2's flow was the
 /// question in 19 of those records (over SV1's null bias in 15, over an added effect
-/// in 4), and they stood too. Not asking them, CI's peer sample (steps, seed 1: the valve asymmetry,
-/// the volume, the sensor delay, nothing hidden) took 368 CPU s against 469, side by
-/// side in one run, with the same answers (measured, session 35).
+/// in 4), and they stood too. Not asking them, CI's peer sample (steps, seed 1: the
+/// valve asymmetry, the volume, the sensor delay, nothing hidden) took 368 CPU s
+/// against 469, side by side in one run, with the same answers (measured, session 35).
 /// An added effect, asked, can fall. The payload hidden there (seed 1, 3.18 kg) was
 /// taken for the manifold's volume at step 2 (gap 10.36; losses 10.75, payload 12.54,
 /// oil mass 12.58), before the run re-fitted SV1's null leakage; asked again between the
