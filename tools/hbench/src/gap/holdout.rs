@@ -9,8 +9,8 @@
 //! with several records, each record is left out in turn and the others are fitted (a
 //! sweep fitted predicts the steps); with one record, its first and second halves (a
 //! steps record's first and last steps), or, when its drive sweeps in frequency, every
-//! other one of its PIECES pieces (`interleaved`). The whole record is always simulated: the
-//! held-out part's states come from the model running through the fitted part.
+//! other one of its PIECES pieces (`interleaved`). The whole record is always simulated:
+//! the held-out part's states come from the model running through the fitted part.
 
 use std::cell::OnceCell;
 
