@@ -117,10 +117,13 @@ impl Scored {
     /// worth `effective` independent samples (`evidence::score`).
     fn of(f: &Fit, chi2: f64, effective: f64, before: &signals::Baseline) -> Scored {
         let bounded = f.bounded();
+        // the price of the parameters it adds: the carried ones, re-fitted beside them,
+        // were fitted in the model `chi2` is of (nested models, `evidence::score`)
+        let own = f.values.len().saturating_sub(f.carried.len());
         Scored {
             effect: f.name.clone(),
             gap: f.gap,
-            score: evidence::score(chi2, f.chi2, effective, f.values.len() as f64),
+            score: evidence::score(chi2, f.chi2, effective, own as f64),
             parameters: json_values(&f.values),
             on_bound: bounded.first().copied(),
             bounded: bounded.iter().map(|(p, _)| *p).collect(),
@@ -151,9 +154,16 @@ impl Scored {
             .collect()
     }
 
-    /// It pays its price and lowers the gap `before` by more than MIN_IMPROVEMENT.
+    /// It pays its price and lowers the gap `before` by more than MIN_IMPROVEMENT; an
+    /// added effect also clears `evidence::ADD_LN_BAYES` over the model without it.
     fn worth_adding(&self, before: f64) -> bool {
-        self.score > 0.0 && self.gap < (1.0 - MIN_IMPROVEMENT) * before && self.on_bound.is_none()
+        let adds = hbmodel::Effect::from_name(&self.effect).is_some();
+        let bar = if adds {
+            2.0 * evidence::ADD_LN_BAYES
+        } else {
+            0.0
+        };
+        self.score > bar && self.gap < (1.0 - MIN_IMPROVEMENT) * before && self.on_bound.is_none()
     }
 }
 

@@ -397,7 +397,8 @@ pub fn write(out: &Path, o: &Outcome, model: Option<&Path>) -> Result<(), String
         if !step.candidates.is_empty() {
             let _ = writeln!(
                 md,
-                "\n| candidate | gap after fit | score (N_eff ln(chi2 / chi2') - k ln N_eff) | parameters |\n|---|---|---|---|"
+                "\n| candidate | gap after fit | score (N_eff ln(chi2 / chi2') - k ln N_eff, k the parameters it adds; an added effect needs over {:.0}) | parameters |\n|---|---|---|---|",
+                2.0 * super::evidence::ADD_LN_BAYES
             );
         }
         let mut c = step.candidates.clone();

@@ -112,7 +112,8 @@ fn paired(labels: Vec<(String, &'static str)>, before: &[f64], after: &[f64]) ->
 }
 
 /// Each signal's gap under the model a round (or a question) starts from, against which
-/// its candidates' fits are read.
+/// its candidates' fits are read. The default holds no signal: no fit is found to trade.
+#[derive(Default)]
 pub struct Baseline {
     labels: Vec<(String, &'static str)>,
     gaps: Vec<f64>,
