@@ -183,8 +183,9 @@ impl<'t> Search<'t> {
             return format!("the model explains the data within their noise (gap {gap:.2}, noise floor 1); no effect adds more than its complexity price");
         }
         format!(
-            "no candidate effect lowers the gap ({gap:.2}) by more than {:.0} % and its complexity price{}",
+            "no candidate lowers the gap ({gap:.2}) by more than {:.0} % and its complexity price (an added effect, clearly: by ln B {:.0} over the model without it){}",
             MIN_IMPROVEMENT * 100.0,
+            evidence::ADD_LN_BAYES,
             if self.refusals.is_empty() {
                 String::new()
             } else {
