@@ -141,24 +141,27 @@ impl Scored {
     /// 0.00 under every design, measured).
     fn contenders(scored: &[Scored]) -> Vec<(String, f64)> {
         let fair: Vec<&Scored> = scored.iter().filter(|s| s.on_bound.is_none()).collect();
-        let added = |s: &Scored| hbmodel::Effect::from_name(&s.effect).is_some();
         fair.iter()
             .filter(|s| {
                 !fair.iter().any(|t| {
                     !std::ptr::eq(**s, *t)
                         && evidence::same_model(&s.parameters, &t.parameters)
-                        && (added(s), t.score) > (added(t), s.score)
+                        && (s.adds_effect(), t.score) > (t.adds_effect(), s.score)
                 })
             })
             .map(|s| (s.effect.clone(), s.score))
             .collect()
     }
 
+    /// It adds a registry effect (not a recalibration, named by the path it re-fits).
+    fn adds_effect(&self) -> bool {
+        hbmodel::Effect::from_name(&self.effect).is_some()
+    }
+
     /// It pays its price and lowers the gap `before` by more than MIN_IMPROVEMENT; an
     /// added effect also clears `evidence::ADD_LN_BAYES` over the model without it.
     fn worth_adding(&self, before: f64) -> bool {
-        let adds = hbmodel::Effect::from_name(&self.effect).is_some();
-        let bar = if adds {
+        let bar = if self.adds_effect() {
             2.0 * evidence::ADD_LN_BAYES
         } else {
             0.0

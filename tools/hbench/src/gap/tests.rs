@@ -249,10 +249,10 @@ fn a_fit_that_is_another_candidates_model_is_no_rival() {
 /// A candidate pays for the parameters it adds, not again for those earlier steps
 /// fitted and it re-fits beside them: the model it is compared with had those fitted
 /// (nested models). An added effect must also be clear over the model without it
-/// (`evidence::ADD_LN_BAYES`), a recalibration only pay its price. The figures are the peer's
-/// steps, seed 1, with nothing hidden (session 38): a 55 N dry friction in the run's
-/// last round, gap 3.83 -> 3.79 over 292 independent samples, beside three carried
-/// parameters and the viscous friction re-fitted.
+/// (`evidence::ADD_LN_BAYES`); a recalibration only pays its price. The figures are
+/// the peer's steps, seed 1, with nothing hidden (session 38): a 55 N dry friction in
+/// the run's last round, gap 3.83 -> 3.79 over 292 independent samples, with the four
+/// parameters earlier steps fitted re-fitted beside it.
 #[test]
 fn a_candidate_pays_for_what_it_adds_and_an_effect_must_be_clear() {
     use super::effects::{self, Fitted};
