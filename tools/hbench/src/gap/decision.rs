@@ -366,11 +366,11 @@ fn verdict(won: Option<&Scored>, p: Option<&Preference>, refused: &[Validation])
     let refusals = if refused.is_empty() {
         String::new()
     } else {
-        let r: Vec<&str> = refused.iter().map(|v| v.effect.as_str()).collect();
-        format!(
-            " ({} refused: no better on the data it was not fitted on)",
-            r.join(", ")
-        )
+        let r: Vec<String> = refused
+            .iter()
+            .map(|v| format!("{} refused: {}", v.effect, v.why_refused()))
+            .collect();
+        format!(" ({})", r.join("; "))
     };
     match (won, p) {
         (None, _) => format!(

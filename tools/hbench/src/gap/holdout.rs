@@ -17,9 +17,10 @@ use std::cell::OnceCell;
 use hbmodel::Params;
 use serde::Serialize;
 
+use super::common_delay::{self, SensorSay};
 use super::data::{Drive, Experiment, Measured};
 use super::effects::{Candidate, Fitted, StepKind};
-use super::fit::{fit, span, Target};
+use super::fit::{fit, span, Fit, Target};
 
 /// One fold: the gap of `held_out` under the model before the step and with the
 /// candidate, each fitted on the rest of the data.
@@ -35,12 +36,28 @@ pub struct Fold {
 pub struct Validation {
     pub effect: String,
     pub folds: Vec<Fold>,
+    /// For a delay of every sensor: what each signal it took further from the data says
+    /// alone (`common_delay`).
+    #[serde(skip_serializing_if = "Vec::is_empty")]
+    pub sensors: Vec<SensorSay>,
 }
 
 impl Validation {
-    /// Every held-out part is closer to the data than under the model before the step.
+    /// Every held-out part is closer to the data than under the model before the step,
+    /// and every signal a delay of all sensors took further from the data sees some delay.
     pub fn passed(&self) -> bool {
-        !self.folds.is_empty() && self.folds.iter().all(|f| f.gap_after < f.gap_before)
+        !self.folds.is_empty()
+            && self.folds.iter().all(|f| f.gap_after < f.gap_before)
+            && self.sensors.iter().all(SensorSay::sees)
+    }
+
+    /// Why it did not pass, in words.
+    pub fn why_refused(&self) -> &'static str {
+        if self.sensors.iter().all(SensorSay::sees) {
+            "no better on the data it was not fitted on"
+        } else {
+            "a signal it took further from the data sees no delay alone"
+        }
     }
 }
 
@@ -244,10 +261,13 @@ impl<'a> Judge<'a> {
         })
     }
 
-    /// Fit `c` on each fold's fitted part (with the carried parameters, as the step
-    /// itself) and compare the held-out part's gap with the model before the step's
-    /// (`baseline`), fold by fold. The folds run in parallel.
-    pub fn validate(&self, c: &Candidate) -> Validation {
+    /// Fit `whole`'s candidate on each fold's fitted part (with the carried parameters,
+    /// as the step itself) and compare the held-out part's gap with the model before the
+    /// step's (`baseline`), fold by fold; the folds run in parallel. A delay of every
+    /// sensor is also read signal by signal from `whole`, its fit on all the data
+    /// (`common_delay`).
+    pub fn validate(&self, whole: &Fit) -> Validation {
+        let c = &whole.candidate;
         let before = self.baseline();
         let parts = folds(self.target, self.names);
         let bar = crate::parallel::bar(
@@ -273,6 +293,7 @@ impl<'a> Judge<'a> {
                     gap_after,
                 })
                 .collect(),
+            sensors: common_delay::each_sensor(self.target, self.names, whole),
         }
     }
 }
@@ -415,7 +436,7 @@ mod tests {
             joint.gap
         );
         let names = ["delayed".to_string(), "plain".to_string()];
-        let v = Judge::new(&target, &names, known, &[], false).validate(&delay);
+        let v = Judge::new(&target, &names, known, &[], false).validate(&joint);
         assert!(!v.passed(), "{v:?}");
         let plain = &v.folds[1];
         assert!(

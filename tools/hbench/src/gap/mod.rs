@@ -14,6 +14,7 @@
 pub mod advice;
 pub mod analysis;
 pub mod blind;
+pub mod common_delay;
 pub mod data;
 pub mod decision;
 pub mod drive;

@@ -437,9 +437,9 @@ pub fn write(out: &Path, o: &Outcome, model: Option<&Path>) -> Result<(), String
         }
     }
     if !o.refusals.is_empty() {
-        md.push_str("\n## Refused: better on what they were fitted on, worse on the rest\n\n");
+        md.push_str("\n## Refused after winning a round\n\n");
         for v in &o.refusals {
-            let _ = writeln!(md, "- `{}`: {}", v.effect, held_out(v));
+            let _ = writeln!(md, "- `{}`, {}: {}", v.effect, v.why_refused(), held_out(v));
         }
     }
     if let Some(a) = &o.advice {
@@ -465,7 +465,22 @@ fn held_out(v: &super::holdout::Validation) -> String {
             )
         })
         .collect();
-    format!("Held out: {}. ", folds.join("; "))
+    let mut text = format!("Held out: {}. ", folds.join("; "));
+    if !v.sensors.is_empty() {
+        let each: Vec<String> = v.sensors.iter().map(|s| s.describe()).collect();
+        text.push_str(&format!(
+            "A delay of every sensor, read on each signal it took further from the data: {}. ",
+            each.join("; ")
+        ));
+        if !v.sensors.iter().all(|s| s.sees()) {
+            text.push_str(
+                "The signals disagree on the delay: the mark of a lag of some sensors alone \
+                 (the pressure transducers' own dynamics read as a delay on steps), which no \
+                 candidate holds. Check those sensors' response. ",
+            );
+        }
+    }
+    text
 }
 
 fn list<'a>(names: impl Iterator<Item = &'a str>) -> String {

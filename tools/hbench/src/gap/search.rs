@@ -189,10 +189,14 @@ impl<'t> Search<'t> {
             if self.refusals.is_empty() {
                 String::new()
             } else {
-                let effects: Vec<&str> = self.refusals.iter().map(|v| v.effect.as_str()).collect();
+                let effects: Vec<String> = self
+                    .refusals
+                    .iter()
+                    .map(|v| format!("{}, {}", v.effect, v.why_refused()))
+                    .collect();
                 format!(
-                    " and improves the data it was not fitted on (refused: {})",
-                    effects.join(", ")
+                    " and passes the held-out check (refused: {})",
+                    effects.join("; ")
                 )
             }
         )

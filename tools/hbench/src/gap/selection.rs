@@ -114,7 +114,7 @@ pub fn select<'a, 'b>(
         if b.1.candidate.kind != StepKind::Add {
             return Some((b, None));
         }
-        let v = judge.validate(&b.1.candidate);
+        let v = judge.validate(b.1);
         if v.passed() {
             return Some((b, Some(v)));
         }

@@ -19,6 +19,10 @@
 //! took y from 1.37 to 1.49 (seed 2, 0.46 ms lag); seed 1's hidden oil mass was named as
 //! the volume alone, at gap 21.9 against 3.96 (no step after it, no re-ask); seed 2's
 //! sensor delay was named as the manifold's volume (gap 2.57 against 1.76).
+//!
+//! One candidate is judged by its signals: a delay of every sensor alike must be seen
+//! by each signal it takes further from the data (`common_delay`). That is the claim of
+//! the effect itself, not a rule on fits that trade.
 
 use hbmodel::Params;
 use serde::Serialize;
@@ -61,7 +65,7 @@ impl SignalGap {
 }
 
 /// (record, signal) of each series of `target`'s residual, in `Target::blocks`' order.
-fn labels(target: &Target, names: &[String]) -> Vec<(String, &'static str)> {
+pub(super) fn labels(target: &Target, names: &[String]) -> Vec<(String, &'static str)> {
     target
         .records
         .iter()
