@@ -116,7 +116,19 @@ impl<'t> Search<'t> {
         self.mark();
         let done: Vec<&str> = self.carried.iter().map(|f| f.path).collect();
         let open = recalibrate::candidates(&self.model, self.within, &done);
-        let fits = selection::fit_all(target, &self.model, gap, &self.carried, open, self.progress);
+        let absent = self
+            .rounds
+            .last()
+            .and_then(|r| r.fits.iter().map(|(_, f)| f).find(|f| f.absent()));
+        let fits = selection::fit_all(
+            target,
+            &self.model,
+            gap,
+            &self.carried,
+            open,
+            absent,
+            self.progress,
+        );
         let chi2 = gap * gap * n;
         // what the residual left by the model so far is worth: a missing effect leaves
         // a coloured residual, whose samples are not independent
