@@ -28,7 +28,7 @@ use hbmodel::Params;
 use serde::Serialize;
 
 use super::fit::{Fit, Target};
-use super::signals::{self, SignalGap};
+use super::signals;
 
 /// Delays at which each signal is read alone, evenly up to the fitted one. The hidden
 /// delays' own minima on y lay at a third to two thirds of the delay fitted to every
@@ -96,19 +96,9 @@ pub fn each_sensor(target: &Target, names: &[String], f: &Fit) -> Vec<SensorSay>
     let Some(without) = gaps(0.0) else {
         return Vec::new();
     };
-    let labels = signals::labels(target, names);
-    let several = labels.windows(2).any(|w| w[0].0 != w[1].0);
-    let worse: Vec<usize> = (0..without.len())
-        .filter(|&i| {
-            SignalGap {
-                record: String::new(),
-                signal: "",
-                before: without[i],
-                after: f.signal_gaps[i],
-            }
-            .worse()
-        })
-        .collect();
+    // each signal's gap without the delay and at the fitted one, with its label
+    let each = signals::paired(signals::labels(target, names), &without, &f.signal_gaps);
+    let worse: Vec<usize> = (0..each.len()).filter(|&i| each[i].worse()).collect();
     if worse.is_empty() {
         return Vec::new();
     }
@@ -124,13 +114,8 @@ pub fn each_sensor(target: &Target, names: &[String], f: &Fit) -> Vec<SensorSay>
                 .map(|(d, g)| (*d, g[i]))
                 .min_by(|a, b| a.1.total_cmp(&b.1))
                 .unwrap_or((fitted, f.signal_gaps[i]));
-            let (record, signal) = &labels[i];
             SensorSay {
-                signal: if several {
-                    format!("{record} {signal}")
-                } else {
-                    signal.to_string()
-                },
+                signal: each[i].label(&each),
                 without: without[i],
                 fitted: f.signal_gaps[i],
                 best_delay,

@@ -55,7 +55,7 @@ impl SignalGap {
 
     /// Its name in a text about `all`: the signal's, with its record's when `all` hold
     /// several records.
-    fn label(&self, all: &[SignalGap]) -> String {
+    pub(super) fn label(&self, all: &[SignalGap]) -> String {
         if all.windows(2).any(|w| w[0].record != w[1].record) {
             format!("{} {}", self.record, self.signal)
         } else {
@@ -102,7 +102,11 @@ pub fn per_signal(
 }
 
 /// Each labelled signal's gap before and after.
-fn paired(labels: Vec<(String, &'static str)>, before: &[f64], after: &[f64]) -> Vec<SignalGap> {
+pub(super) fn paired(
+    labels: Vec<(String, &'static str)>,
+    before: &[f64],
+    after: &[f64],
+) -> Vec<SignalGap> {
     labels
         .into_iter()
         .zip(before.iter().zip(after))

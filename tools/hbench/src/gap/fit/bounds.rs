@@ -3,6 +3,7 @@
 
 use super::coordinate::Coordinate;
 use super::Fit;
+use crate::gap::effects::Fitted;
 use crate::gap::effects::StepKind;
 
 /// How close to a bound of its fit a parameter may end and still count as inside it, as
@@ -54,9 +55,7 @@ impl Fit {
             .zip(&self.values)
             .enumerate()
             .filter_map(|(k, (f, &(path, v)))| {
-                let c = Coordinate::new(f);
-                let (a, b, w) = c.scale(v);
-                let s = (w - a) / (b - a);
+                let s = span_position(f, v);
                 let narrow = f.bounds.is_some() && !(ON_BOUND..=1.0 - ON_BOUND).contains(&s);
                 let absent = switches_others && k < own && s < ON_BOUND;
                 (narrow || absent).then_some((path, v))
@@ -78,10 +77,17 @@ impl Fit {
     /// model it fitted is those effects alone, at the values it ended at (`bounded`).
     pub fn absent(&self) -> bool {
         self.switches_others()
-            && self.candidate.fitted.first().is_some_and(|f| {
-                let c = Coordinate::new(f);
-                let (a, b, w) = c.scale(self.values[0].1);
-                (w - a) / (b - a) < ON_BOUND
-            })
+            && self
+                .candidate
+                .fitted
+                .first()
+                .is_some_and(|f| span_position(f, self.values[0].1) < ON_BOUND)
     }
+}
+
+/// Where `v` lies in the span of `f`'s bounded coordinate, 0 at its lower end and 1 at
+/// its upper one (on a log scale for a log parameter).
+fn span_position(f: &Fitted, v: f64) -> f64 {
+    let (a, b, w) = Coordinate::new(f).scale(v);
+    (w - a) / (b - a)
 }
