@@ -21,9 +21,11 @@
 //! sensor delay (53 and 39 CPU s, told by ln B 31 and 78, fitted 1.42 against 1.44 and
 //! 1.68 ms against 1.71 in the full study; the peer's test took 149 s wall with them).
 //! Entrained air and internal leakage are told on neither bench's seed-1 steps (the air is
-//! a softer oil, ln B 0.5 on the peer; the leakage a null bias or a heavier mass), so with
-//! form error they are in the full study only; the CI's 2026-11-26 run had them on the peer
-//! (air not named, leakage named as its recalibration, about 4 CPU min for no assertion).
+//! a softer oil, ln B 0.5 on the peer; the leakage a null bias or a heavier mass); the CI's
+//! 2026-11-26 run had them on the peer (air not named, leakage named as its recalibration,
+//! about 4 CPU min for no assertion). Since session 40 the leakage is in on seed 4's Rust
+//! steps, whose form error has no sensor lag and tells it; the air is told on no record
+//! with form error, so it stays in the full study only.
 //! Dry friction on the Rust bench's seed-1 steps is told (ln B 474) and named first, but
 //! fitted 82 N against 129 while viscous friction is re-fitted 626 against 374 N s/m
 //! (correlation -0.79; the pressure sensors' 0.40 ms lag of the form error taken up by the
@@ -164,4 +166,22 @@ fn on_the_slow_moves_the_payload_is_named() {
         1,
     )];
     check(&cases, 1);
+}
+
+/// Seed 4's form error (parameters a few percent off, no sensor lag; the records' form
+/// gap 0.02 noise levels) puts the internal leakage with form error in reach of the CI:
+/// told by ln B 36 and named as its recalibration, 5.54e-13 against 5.02e-13 m3/(s Pa),
+/// 19 CPU s (docs/blind/form_error/rust_steps_seed4_session39.json; the other seeds' steps
+/// do not tell it). The manifold's three effects hidden together on the same record are
+/// told by ln B 1932 and named, the volume then the losses, but took 368 CPU s on
+/// 2026-11-29: they stay in the full study.
+#[test]
+fn under_a_form_error_without_sensor_lag_the_leakage_is_named() {
+    let leak = judged_case(
+        Simulator::Rust,
+        Some(Effect::InternalLeakage),
+        Kind::Steps,
+        4,
+    );
+    check(&[leak], 1);
 }
