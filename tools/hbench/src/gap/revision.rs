@@ -33,6 +33,10 @@
 //! When the step is asked because the run's later steps moved its size, the effects the
 //! run added after it are asked beside its rival (`movers`): one of them may be what the
 //! step took the place of.
+//! When the question refuses the step's own choice, an added effect, on the data it was
+//! not fitted on, and names no rival clearly, the run is continued from that step without
+//! it (`withdraw`): the check the step passed with what the run knew then fails
+//! with what the run learned later.
 //! A question asked after another (held or widened) starts each fit from the other's fit
 //! of the same candidate as well as cold, and keeps the lower end (`fit::fit_warm`): the
 //! answer must not depend on the basin a cold start found. Whatever the answer, the
@@ -263,6 +267,18 @@ fn ask_again<'t>(
         others: Vec::new(),
     };
     if !clear_for_rival {
+        if let Some(refused) = withdraw::refused_choice(step, &d.refused) {
+            let refused = refused.clone();
+            let (continued, ln_b) = withdraw::continue_without(run, earlier, &asked, &refused);
+            report.verdict = withdraw::verdict(&report, &refused, (continued.gap, run.gap), ln_b);
+            report.continued = Some(Path::of(&continued));
+            report.ln_bayes_factor = Some(ln_b);
+            report.revised = true;
+            return Some(Reasked {
+                report,
+                kept: Some(continued),
+            });
+        }
         let bound = outfitted(&asked).map_or(String::new(), |(name, gap, path)| {
             format!(
                 ", but `{name}` fitted better (gap {gap:.2}) with `{path}` on a bound of its fit: past it, it would fit better still"
@@ -281,17 +297,7 @@ fn ask_again<'t>(
     let rival = d.winner.clone().unwrap_or_default();
     let mut continued = continue_with(earlier, &asked);
     continued.run();
-    // the two ends compared in the original end's independent samples
-    let n = target.len() as f64;
-    let (effective, _) = effective_samples(target, &run.model);
-    let extra = continued.carried.len() as f64 - run.carried.len() as f64;
-    let score = evidence::score(
-        run.gap * run.gap * n,
-        continued.gap * continued.gap * n,
-        effective,
-        extra,
-    );
-    let ln_b = score / 2.0;
+    let ln_b = ends_ln_b(run, &continued);
     let kept = ln_b > 0.0;
     report.continued = Some(Path::of(&continued));
     report.ln_bayes_factor = Some(ln_b);
@@ -453,24 +459,7 @@ pub const REFITTED: &str = "re-fitted before re-asking: ";
 /// winner taken as steps.
 fn continue_with<'t>(mut s: Search<'t>, asked: &Asked) -> Search<'t> {
     let d = &asked.decision;
-    if let Some(b) = &asked.baseline {
-        let mut step = step_of(b, &s.model, s.gap, Vec::new(), d.effective_samples, None);
-        step.name = format!(
-            "{REFITTED}{}",
-            b.candidate
-                .fitted
-                .iter()
-                .map(|f| f.path)
-                .collect::<Vec<_>>()
-                .join(", ")
-        );
-        let round = advice::Round {
-            start: s.model.clone(),
-            tau: asked.tau,
-            fits: vec![(0.0, b.clone())],
-        };
-        s.take(step, round, b);
-    }
+    take_refit(&mut s, asked);
     let k = asked.won.expect("the rival won");
     let winner = &asked.fits[k];
     let mut step: Step = step_of(
@@ -496,9 +485,51 @@ fn continue_with<'t>(mut s: Search<'t>, asked: &Asked) -> Search<'t> {
     s
 }
 
+/// ln B of `continued`'s end against `run`'s (positive: the continued end preferred),
+/// in the original end's independent samples, each parameter of the difference paying
+/// its price (`evidence::score`).
+fn ends_ln_b(run: &Search, continued: &Search) -> f64 {
+    let (target, _) = run.target();
+    let n = target.len() as f64;
+    let (effective, _) = effective_samples(target, &run.model);
+    let extra = continued.carried.len() as f64 - run.carried.len() as f64;
+    evidence::score(
+        run.gap * run.gap * n,
+        continued.gap * continued.gap * n,
+        effective,
+        extra,
+    ) / 2.0
+}
+
+/// The question's re-fitted model (its recalibrations, when it asked for any) taken as
+/// a step of `s`.
+fn take_refit(s: &mut Search, asked: &Asked) {
+    let Some(b) = &asked.baseline else {
+        return;
+    };
+    let d = &asked.decision;
+    let mut step = step_of(b, &s.model, s.gap, Vec::new(), d.effective_samples, None);
+    step.name = format!(
+        "{REFITTED}{}",
+        b.candidate
+            .fitted
+            .iter()
+            .map(|f| f.path)
+            .collect::<Vec<_>>()
+            .join(", ")
+    );
+    let round = advice::Round {
+        start: s.model.clone(),
+        tau: asked.tau,
+        fits: vec![(0.0, b.clone())],
+    };
+    s.take(step, round, b);
+}
+
 mod bounds;
 mod question;
 mod stand_ins;
+mod withdraw;
 use bounds::{outfitted, pinned_by_all};
 #[cfg(test)]
 use question::question;

@@ -16,7 +16,7 @@ use crate::gap::{target_of, Scored};
 
 /// A run whose first step took `taken` over `rival` (scores 100 and `rival_score`;
 /// 99 is a hair, ln B 0.5, both paid), then recalibrated SV1's rated flow.
-fn run_taking<'t>(
+pub(super) fn run_taking<'t>(
     target: &'t Target<'t>,
     names: &'t [String],
     known: &hbmodel::Params,
@@ -63,6 +63,30 @@ fn run_taking<'t>(
     s
 }
 
+/// A sensor delay hidden in the +-10 mm steps of the Rust bench (seed 2, no form error),
+/// and their record.
+pub(super) fn delay_on_steps() -> (Setup, [crate::gap::Record; 1]) {
+    let s = Setup::new(Simulator::Rust, false, &[Effect::SensorDelay], 2);
+    let records = [record(&s, Kind::Steps, 2)];
+    (s, records)
+}
+
+/// A run that took a valve lag over the sensor delay by a hair (`run_taking`).
+pub(super) fn lag_taken<'t>(
+    target: &'t Target<'t>,
+    names: &'t [String],
+    known: &hbmodel::Params,
+) -> Search<'t> {
+    run_taking(
+        target,
+        names,
+        known,
+        Effect::ValveDynamics,
+        Effect::SensorDelay,
+        99.0,
+    )
+}
+
 /// The fit of the recalibration `name` of the known model.
 fn recalibration_fit(target: &Target, known: &hbmodel::Params, name: &str) -> crate::gap::fit::Fit {
     let c = recalibrate::candidates(known, 0.15, &[])
@@ -78,19 +102,11 @@ fn recalibration_fit(target: &Target, known: &hbmodel::Params, name: &str) -> cr
 /// stands. Taking a run back keeps what the step before it had.
 #[test]
 fn a_contested_step_is_asked_again_and_the_run_continued_from_a_clear_rival() {
-    let s = Setup::new(Simulator::Rust, false, &[Effect::SensorDelay], 2);
-    let records = [record(&s, Kind::Steps, 2)];
+    let (s, records) = delay_on_steps();
     let target = target_of(&records).expect("a target");
     let names = vec!["steps".to_string()];
 
-    let wrong = run_taking(
-        &target,
-        &names,
-        &s.known,
-        Effect::ValveDynamics,
-        Effect::SensorDelay,
-        99.0,
-    );
+    let wrong = lag_taken(&target, &names, &s.known);
     assert!(advice::contested(&wrong.steps[0]).is_some());
     let back = wrong.before(1).expect("step 2 was taken");
     assert_eq!(back.steps.len(), 1);
@@ -146,8 +162,7 @@ fn a_contested_step_is_asked_again_and_the_run_continued_from_a_clear_rival() {
 /// whose size it moved is asked beside the rival.
 #[test]
 fn a_clear_step_is_asked_again_only_when_the_run_ends_far_above_the_floor_or_moved_it() {
-    let s = Setup::new(Simulator::Rust, false, &[Effect::SensorDelay], 2);
-    let records = [record(&s, Kind::Steps, 2)];
+    let (s, records) = delay_on_steps();
     let target = target_of(&records).expect("a target");
     let names = vec!["steps".to_string()];
     let mut run = run_taking(
@@ -392,8 +407,7 @@ fn a_question_is_widened_only_by_a_recalibration_that_pays_its_price() {
 /// A hidden sensor delay's steps (Rust bench, seed 2), asked between a valve lag and the
 /// delay from the known model with nothing re-fitted.
 fn delay_or_lag() -> (Setup, [String; 2], Asked) {
-    let s = Setup::new(Simulator::Rust, false, &[Effect::SensorDelay], 2);
-    let records = [record(&s, Kind::Steps, 2)];
+    let (s, records) = delay_on_steps();
     let target = target_of(&records).expect("a target");
     let names = vec!["steps".to_string()];
     let between = ["valve_dynamics".to_string(), "sensor_delay".to_string()];
