@@ -257,6 +257,13 @@ enum Command {
         /// study judges its cases as it goes)
         #[arg(long, requires = "summarise")]
         rivals: bool,
+        /// Judge each identifiable case on its bench's own record as well (every candidate
+        /// fitted to the case's noise-free record, form error and all, with every
+        /// recalibration of the known model beside it), beside the transplanted signature
+        /// of --rivals; about as costly again as the analysis. With --summarise: judge the
+        /// cases not yet judged so. The table gives the rates under both judgements
+        #[arg(long)]
+        on_record: bool,
         #[arg(long, default_value = "out/blind")]
         out: PathBuf,
     },
@@ -405,6 +412,7 @@ fn main() -> ExitCode {
             form_error,
             summarise,
             rivals,
+            on_record,
             out,
         } => {
             let kinds = if experiments.is_empty() {
@@ -426,10 +434,11 @@ fn main() -> ExitCode {
                     },
                     simulators: &simulators,
                     form_error,
+                    on_record,
                     out: &out,
                 })
             } else {
-                gap::blind::summarise(&summarise, &out, rivals)
+                gap::blind::summarise(&summarise, &out, gap::blind::Rejudge { rivals, on_record })
             }
         }
         Command::Bench {

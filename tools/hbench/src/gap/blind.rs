@@ -43,6 +43,7 @@ fn recalibrated(steps: &[super::Step]) -> Vec<String> {
 
 mod advised;
 mod case;
+mod on_record;
 pub use case::Case;
 pub mod rivals;
 mod table;
@@ -318,6 +319,7 @@ pub fn case_advised(
             .as_ref()
             .and_then(|r| serde_json::to_value(r).ok()),
         rivalry: None,
+        rivalry_on_record: None,
         cpu_seconds: Some(cpu_seconds),
         rtol: Some(settings.rtol),
     };
@@ -344,10 +346,28 @@ fn judged(c: &Case, label: &str) -> Option<rivals::Rivalry> {
     })
 }
 
+/// A case judged against its rivals on its bench's own record (`on_record`); a judgement
+/// that fails is said on stderr and left out, the case kept.
+fn judged_on_record(c: &Case, label: &str) -> Option<rivals::Rivalry> {
+    on_record::judge(c, false).unwrap_or_else(|e| {
+        eprintln!("{label}: not judged on its record: {e}");
+        None
+    })
+}
+
+/// Which judgements `summarise` makes of the cases not yet judged so.
+#[derive(Debug, Clone, Copy, Default)]
+pub struct Rejudge {
+    /// Against their rivals, the signature transplanted (`rivals`).
+    pub rivals: bool,
+    /// Against their rivals on the bench's own record (`on_record`).
+    pub on_record: bool,
+}
+
 /// Tabulate a study's blind.json again (after a change of the table, or to merge runs);
-/// with `rivals`, the cases not yet judged against their rivals are judged first (one
-/// fit per candidate on each case's noise-free records, no workflow run).
-pub fn summarise(files: &[std::path::PathBuf], out: &Path, rivals: bool) -> Result<(), String> {
+/// with `judge`, the cases not yet judged against their rivals are judged first (one fit
+/// per candidate on each case's noise-free records, no workflow run).
+pub fn summarise(files: &[std::path::PathBuf], out: &Path, judge: Rejudge) -> Result<(), String> {
     let mut cases: Vec<Case> = Vec::new();
     for f in files {
         let text = std::fs::read_to_string(f).map_err(|e| format!("{}: {e}", f.display()))?;
@@ -355,28 +375,41 @@ pub fn summarise(files: &[std::path::PathBuf], out: &Path, rivals: bool) -> Resu
             serde_json::from_str(&text).map_err(|e| format!("{}: {e}", f.display()))?;
         cases.extend(more);
     }
-    if rivals {
-        let open: Vec<usize> = (0..cases.len())
-            .filter(|&i| cases[i].rivalry.is_none() && !cases[i].hidden.is_empty())
-            .collect();
-        let bar = crate::parallel::bar(open.len(), "judging rivals", true);
-        for i in open {
+    let open: Vec<usize> = (0..cases.len())
+        .filter(|&i| {
             let c = &cases[i];
-            let label = format!(
-                "{} {} {} #{}",
-                c.simulator,
-                c.hidden.join("+"),
-                c.experiment,
-                c.seed
-            );
-            bar.set_message(label.clone());
+            !c.hidden.is_empty()
+                && ((judge.rivals && c.rivalry.is_none())
+                    || (judge.on_record
+                        && c.rivalry_on_record.is_none()
+                        && c.identifiable == Some(true)))
+        })
+        .collect();
+    let bar = crate::parallel::bar(open.len(), "judging rivals", true);
+    for i in open {
+        let c = &cases[i];
+        let label = format!(
+            "{} {} {} #{}",
+            c.simulator,
+            c.hidden.join("+"),
+            c.experiment,
+            c.seed
+        );
+        bar.set_message(label.clone());
+        if judge.rivals && cases[i].rivalry.is_none() {
             cases[i].rivalry = judged(&cases[i], &label);
-            // written as it goes: the judgement of a long study can be read while it runs
-            write(out, &cases)?;
-            bar.inc(1);
         }
-        bar.finish_and_clear();
+        if judge.on_record
+            && cases[i].rivalry_on_record.is_none()
+            && cases[i].identifiable == Some(true)
+        {
+            cases[i].rivalry_on_record = judged_on_record(&cases[i], &label);
+        }
+        // written as it goes: the judgement of a long study can be read while it runs
+        write(out, &cases)?;
+        bar.inc(1);
     }
+    bar.finish_and_clear();
     let md = write(out, &cases)?;
     println!("{md}");
     Ok(())
@@ -400,6 +433,9 @@ pub struct Options<'a> {
     /// Benches (empty: the Rust model).
     pub simulators: &'a [Simulator],
     pub form_error: bool,
+    /// Judge each identifiable case on its bench's own record too (`on_record`), beside
+    /// the transplanted signature (`rivals`): about as costly again as the analysis.
+    pub on_record: bool,
     pub out: &'a Path,
 }
 
@@ -477,6 +513,10 @@ pub fn main(o: &Options) -> Result<(), String> {
         match case_advised(sim, form_error, &set, &kinds, seed, o.study) {
             Ok(mut c) => {
                 c.rivalry = judged(&c, &label);
+                // the record's own judgement where the effect shows at all
+                if o.on_record && c.identifiable == Some(true) {
+                    c.rivalry_on_record = judged_on_record(&c, &label);
+                }
                 cases.push(c);
             }
             // on stderr whether or not the bar is shown: a hidden bar's println prints

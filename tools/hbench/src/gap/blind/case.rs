@@ -95,6 +95,11 @@ pub struct Case {
     /// (`rivals`; single hidden effects only, absent in studies run before it).
     #[serde(default)]
     pub rivalry: Option<rivals::Rivalry>,
+    /// The same judgement made on the bench's own noise-free record, every recalibration
+    /// re-fitted beside each candidate (`on_record`; absent in studies run before session
+    /// 41 and until `blind --summarise --on-record` judges them).
+    #[serde(default, skip_serializing_if = "Option::is_none")]
+    pub rivalry_on_record: Option<rivals::Rivalry>,
     /// CPU seconds the analysis of the case's records took (every thread; the advised
     /// record's analysis and the rivals' judgement not counted): what a user waits for,
     /// issue 14 item 7.
@@ -126,6 +131,12 @@ impl Case {
     /// Identifiable, and told from every rival (`rivals`); None when not judged.
     pub fn told_from_rivals(&self) -> Option<bool> {
         let r = self.rivalry.as_ref()?;
+        Some(self.identifiable == Some(true) && r.told())
+    }
+    /// Identifiable, and told from every rival on the bench's own record (`on_record`);
+    /// None when not judged so.
+    pub fn told_on_record(&self) -> Option<bool> {
+        let r = self.rivalry_on_record.as_ref()?;
         Some(self.identifiable == Some(true) && r.told())
     }
     pub fn magnitude_error(&self) -> Option<f64> {

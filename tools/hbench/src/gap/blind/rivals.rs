@@ -78,7 +78,7 @@ pub struct Rivalry {
 /// One-sided normal quantile of the rate the issue asks of the workflow (the hidden effect
 /// named first in 90 % of the identifiable cases): a case counts as told when its ln B
 /// clears CLEAR_LN_BAYES in 9 noise draws of 10.
-const TOLD_QUANTILE: f64 = 1.2816;
+pub(super) const TOLD_QUANTILE: f64 = 1.2816;
 
 impl Rivalry {
     /// The record tells the hidden effect from every rival, in 9 records of 10: the
@@ -91,18 +91,18 @@ impl Rivalry {
     }
 
     /// The ln B the hidden effect clears in 9 records of 10.
-    fn margin(&self) -> f64 {
+    pub(super) fn margin(&self) -> f64 {
         self.ln_bayes - TOLD_QUANTILE * self.ln_bayes_sd
     }
 }
 
 /// Seed of the white noise added to the hidden effect's residual to estimate its
 /// correlation time: any fixed value; it only makes the estimate repeatable.
-const TAU_NOISE_SEED: u64 = 17;
+pub(super) const TAU_NOISE_SEED: u64 = 17;
 
 /// The candidate that stands for `e` from `known`: the effect added, or, when the known
 /// model has it on already (the section 4.4 leakage and friction), its recalibration.
-fn standing_for(known: &hbmodel::Params, e: Effect) -> Option<Candidate> {
+pub(super) fn standing_for(known: &hbmodel::Params, e: Effect) -> Option<Candidate> {
     if known.has(e) {
         recalibrate::candidates(known, DEFAULT_FRACTION, &[])
             .into_iter()
@@ -110,6 +110,28 @@ fn standing_for(known: &hbmodel::Params, e: Effect) -> Option<Candidate> {
     } else {
         effects::candidate(e)
     }
+}
+
+/// The sensors without their noise: what a judgement reads (its records are the
+/// expectation; the noise enters through N and the spread of ln B).
+fn noise_free() -> SensorParams {
+    SensorParams {
+        position_noise: 0.0,
+        pressure_noise: 0.0,
+        ..SensorParams::default()
+    }
+}
+
+/// The noise-free records of the bench `truth` under each of `kinds`.
+pub(super) fn noise_free_records(
+    truth: &Truth,
+    kinds: &[Kind],
+) -> Result<Vec<(Experiment, Measured)>, String> {
+    let exact = noise_free();
+    kinds
+        .iter()
+        .map(|&k| measure_truth(truth, k, &exact))
+        .collect()
 }
 
 /// The noise-free record of the model `base` under `kind` with the hidden effect's
@@ -146,7 +168,7 @@ fn transplanted(
 }
 
 /// The fitting target of noise-free records, each signal weighed by the sensors' noise.
-fn target_of(records: &[(Experiment, Measured)]) -> Target<'_> {
+pub(super) fn target_of(records: &[(Experiment, Measured)]) -> Target<'_> {
     let noise = SensorParams::default();
     Target {
         records: records
@@ -191,7 +213,7 @@ fn form_residual(
 }
 
 /// What a rival re-fitting every parameter at once is called.
-const EVERY: &str = "every recalibration at once";
+pub(super) const EVERY: &str = "every recalibration at once";
 
 /// Every recalibration of `known` as one candidate (SV2 as its own valve among them): the
 /// known model bent as far as its parameters' bounds let it. As a rival it leaves out the
@@ -203,7 +225,7 @@ const EVERY: &str = "every recalibration at once";
 /// had been recalibrated (gap 2.37 -> 1.20; the leakage would then have lowered it to
 /// 1.198). On the transplanted record it does not come closer than the single ones there
 /// (measured): the form error those recalibrations took up is not on it.
-fn every_recalibration(known: &hbmodel::Params, except: Option<Effect>) -> Candidate {
+pub(super) fn every_recalibration(known: &hbmodel::Params, except: Option<Effect>) -> Candidate {
     let own =
         |c: &Candidate| except.is_some_and(|e| c.effect == Some(e) || c.switches_on.contains(&e));
     let open: Vec<Candidate> = recalibrate::candidates(known, DEFAULT_FRACTION, &[])
@@ -238,15 +260,8 @@ pub fn rivalry(
     let Some(own) = standing_for(known, *e) else {
         return Ok(None);
     };
-    let exact = SensorParams {
-        position_noise: 0.0,
-        pressure_noise: 0.0,
-        ..SensorParams::default()
-    };
-    let without: Vec<(Experiment, Measured)> = kinds
-        .iter()
-        .map(|&k| measure_truth(&s.without, k, &exact))
-        .collect::<Result<_, _>>()?;
+    let exact = noise_free();
+    let without = noise_free_records(&s.without, kinds)?;
     // the known model recalibrated to the bench without the effect: where the workflow
     // stands once the form error's parameters are taken up, and what is left of it
     let (base, form) = form_residual(&target_of(&without), known)?;
@@ -288,31 +303,17 @@ pub fn rivalry(
     }
     // each model's residual on the bench's record: its own, with the form error's beside
     let residual = &own + &form;
-    let mut rng = Pcg64::seed_from_u64(TAU_NOISE_SEED);
-    let white = Normal::new(0.0, 1.0).map_err(|x| x.to_string())?;
-    let noisy: Vec<f64> = residual
-        .iter()
-        .map(|r| r + white.sample(&mut rng))
-        .collect();
-    let (effective, _) = evidence::effective_samples(&noisy, &target.blocks());
-    let k_own = own_fit.values.len() as f64;
     // expected chi-squares on the noisy record: the model's own misfit, the form error's
     // and the noise's N. Each fit on the bench's own record would take up part of the
     // form error; fitted without it here, their cross terms with it are chance (an
     // added one put seed 2's dry friction from ln B 57 to -66), so they are left out.
     let form_chi2 = form.norm_squared();
-    let c_h = hidden_chi2 + form_chi2 + n;
-    let ln_b =
-        |c_r: f64, k: f64| (effective * (c_r / c_h).ln() - (k_own - k) * effective.ln()) / 2.0;
-    // ln B's spread from one noise draw n to the next: a model's chi-square on the noisy
-    // record is C = |r + n|^2 = c + N + 2 n.r + (|n|^2 - N), so ln B moves by
-    // N_eff / 2 (2 n.r_r / C_r - 2 n.r_h / C_h + (|n|^2 - N) (1 / C_r - 1 / C_h)), of
-    // variance (N_eff / 2)^2 (4 |r_r / C_r - r_h / C_h|^2 + 2 N (1 / C_r - 1 / C_h)^2);
-    // near the noise floor that is |r_r - r_h| / tau
-    let sd = |r: &DVector<f64>, c_r: f64| {
-        let apart = (r / c_r - &residual / c_h).norm_squared();
-        effective / 2.0 * (4.0 * apart + 2.0 * n * (1.0 / c_r - 1.0 / c_h).powi(2)).sqrt()
-    };
+    let expected = Expected::new(
+        residual,
+        &target.blocks(),
+        hidden_chi2 + form_chi2 + n,
+        own_fit.values.len() as f64,
+    )?;
     let gap = |chi2: f64| (chi2 / n).sqrt();
     // a rival that ended on a narrow bound of its fit is no model the workflow takes; the
     // closest is the one least often beaten clearly
@@ -331,11 +332,78 @@ pub fn rivalry(
                 },
                 rival_gap: f.gap,
                 form_gap: gap(form_chi2),
-                ln_bayes: ln_b(c_r, f.values.len() as f64),
-                ln_bayes_sd: sd(&r, c_r),
+                ln_bayes: expected.ln_bayes(c_r, f.values.len() as f64),
+                ln_bayes_sd: expected.sd(&r, c_r),
             }
         })
         .min_by(|a, b| a.margin().total_cmp(&b.margin())))
+}
+
+/// The evidence a record is expected to hold for the hidden effect's model (residual
+/// `residual`, expected chi-square `c_h` on the noisy record, `k_own` parameters) against
+/// a rival's, at the sensors' noise (unit variance in the residual's units).
+pub(super) struct Expected {
+    residual: DVector<f64>,
+    c_h: f64,
+    k_own: f64,
+    /// Independent samples of the hidden model's residual with unit white noise added
+    /// (seeded: the estimate is repeatable), series by series (`blocks`).
+    effective: f64,
+}
+
+impl Expected {
+    pub(super) fn new(
+        residual: DVector<f64>,
+        blocks: &[usize],
+        c_h: f64,
+        k_own: f64,
+    ) -> Result<Self, String> {
+        let mut rng = Pcg64::seed_from_u64(TAU_NOISE_SEED);
+        let white = Normal::new(0.0, 1.0).map_err(|x| x.to_string())?;
+        let noisy: Vec<f64> = residual
+            .iter()
+            .map(|r| r + white.sample(&mut rng))
+            .collect();
+        let (effective, _) = evidence::effective_samples(&noisy, blocks);
+        Ok(Expected {
+            residual,
+            c_h,
+            k_own,
+            effective,
+        })
+    }
+
+    /// ln B of the hidden effect's model over a rival of expected chi-square `c_r` with
+    /// `k` parameters (`evidence::score`'s form, halved).
+    pub(super) fn ln_bayes(&self, c_r: f64, k: f64) -> f64 {
+        let eff = self.effective;
+        (eff * (c_r / self.c_h).ln() - (self.k_own - k) * eff.ln()) / 2.0
+    }
+
+    /// ln B's spread from one noise draw n to the next, for a rival of residual `r`: a
+    /// model's chi-square on the noisy record is C = |r + n|^2 = c + N + 2 n.r +
+    /// (|n|^2 - N), so ln B moves by N_eff / 2 (2 n.r_r / C_r - 2 n.r_h / C_h + (|n|^2 -
+    /// N) (1 / C_r - 1 / C_h)), of variance (N_eff / 2)^2 (4 |r_r / C_r - r_h / C_h|^2 +
+    /// 2 N (1 / C_r - 1 / C_h)^2); near the noise floor that is |r_r - r_h| / tau.
+    pub(super) fn sd(&self, r: &DVector<f64>, c_r: f64) -> f64 {
+        let n = self.residual.len() as f64;
+        let apart = (r / c_r - &self.residual / self.c_h).norm_squared();
+        self.effective / 2.0 * (4.0 * apart + 2.0 * n * (1.0 / c_r - 1.0 / self.c_h).powi(2)).sqrt()
+    }
+}
+
+/// A recorded case's bench (from its seed), the effects it hid and the experiments of
+/// its records: what either judgement needs to make it again.
+pub(super) fn setup_of(case: &Case) -> Result<(Setup, Vec<Effect>, Vec<Kind>), String> {
+    let sim = Simulator::parse(&case.simulator)?;
+    let hidden = hidden_of(case)?;
+    let kinds: Vec<Kind> = case
+        .experiment
+        .split('+')
+        .map(Kind::parse)
+        .collect::<Result<_, _>>()?;
+    let s = Setup::new(sim, case.form_error, &hidden, case.seed);
+    Ok((s, hidden, kinds))
 }
 
 /// The effects a case hid, without those they brought along (which `Case::hidden` lists
@@ -355,15 +423,22 @@ fn hidden_of(case: &Case) -> Result<Vec<Effect>, String> {
 
 /// Judge a recorded case against its rivals again, from its bench's seed.
 pub fn judge(case: &Case, progress: bool) -> Result<Option<Rivalry>, String> {
-    let sim = Simulator::parse(&case.simulator)?;
-    let hidden = hidden_of(case)?;
-    let kinds: Vec<Kind> = case
-        .experiment
-        .split('+')
-        .map(Kind::parse)
-        .collect::<Result<_, _>>()?;
-    let s = Setup::new(sim, case.form_error, &hidden, case.seed);
+    let (s, hidden, kinds) = setup_of(case)?;
     rivalry(&s, &hidden, &kinds, progress)
+}
+
+/// A judgement of the Rust bench's steps (seed `seed`, with or without form error) with
+/// one effect `e` hidden, by `judge` (`rivalry` here or `on_record::rivalry`): the tests'
+/// one way to ask either judge.
+#[cfg(test)]
+pub(super) type JudgeFn = fn(&Setup, &[Effect], &[Kind], bool) -> Result<Option<Rivalry>, String>;
+
+#[cfg(test)]
+pub(super) fn on_rust_steps(judge: JudgeFn, form_error: bool, seed: u64, e: Effect) -> Rivalry {
+    let s = Setup::new(Simulator::Rust, form_error, &[e], seed);
+    judge(&s, &[e], &[Kind::Steps], false)
+        .unwrap()
+        .expect("a single hidden effect is judged")
 }
 
 #[cfg(test)]
@@ -378,12 +453,7 @@ mod tests {
     /// quantisation.
     #[test]
     fn air_on_steps_is_not_told_from_a_softer_oil_but_a_delay_is_told() {
-        let judge = |e: Effect| {
-            let s = Setup::new(Simulator::Rust, false, &[e], 1);
-            rivalry(&s, &[e], &[Kind::Steps], false)
-                .unwrap()
-                .expect("a single hidden effect is judged")
-        };
+        let judge = |e: Effect| on_rust_steps(rivalry, false, 1, e);
         let air = judge(Effect::EntrainedAir);
         assert!(!air.told(), "{air:?}");
         assert_eq!(air.rival, "recalibrate fluid.bulk_modulus", "{air:?}");
@@ -410,12 +480,7 @@ mod tests {
     /// alone, while the bench's two valves leak alike (`recalibrate::set_fitted`).
     #[test]
     fn beside_a_form_error_a_delay_is_told_far_more_clearly_than_a_leakage() {
-        let judge = |e: Effect| {
-            let s = Setup::new(Simulator::Rust, true, &[e], 2);
-            rivalry(&s, &[e], &[Kind::Steps], false)
-                .unwrap()
-                .expect("a single hidden effect is judged")
-        };
+        let judge = |e: Effect| on_rust_steps(rivalry, true, 2, e);
         let delay = judge(Effect::SensorDelay);
         assert!(delay.told() && delay.ln_bayes > 300.0, "{delay:?}");
         assert!((0.5..1.5).contains(&delay.form_gap), "{delay:?}");

@@ -4,7 +4,7 @@
 use std::fmt::Write as _;
 use std::path::Path;
 
-use super::Case;
+use super::{rivals, Case};
 
 fn rate(cases: &[&Case], f: impl Fn(&Case) -> bool) -> String {
     if cases.is_empty() {
@@ -105,7 +105,8 @@ pub fn table(cases: &[Case]) -> String {
         }
     }
     row(&mut md, "**all**", cases.iter().collect());
-    md.push_str(&rivals_line(cases));
+    md.push_str(&rivals_line(cases, Judge::Transplant));
+    md.push_str(&rivals_line(cases, Judge::OnRecord));
     md.push_str(&cpu_line(cases));
     md.push_str(&rtol_line(cases));
     md.push_str(&end_line(cases));
@@ -217,13 +218,49 @@ fn revision_line(cases: &[Case]) -> String {
     line
 }
 
-/// The identifiable cases judged against their rivals (`rivals`), how many of them the
+/// Which judgement of identifiability a table line reads.
+#[derive(Clone, Copy)]
+enum Judge {
+    /// `rivals`: the signature transplanted onto the recalibrated known model's record.
+    Transplant,
+    /// `on_record`: the bench's own record, every recalibration beside each candidate.
+    OnRecord,
+}
+
+impl Judge {
+    fn of(self, c: &Case) -> Option<&rivals::Rivalry> {
+        match self {
+            Judge::Transplant => c.rivalry.as_ref(),
+            Judge::OnRecord => c.rivalry_on_record.as_ref(),
+        }
+    }
+
+    fn told(self, c: &Case) -> Option<bool> {
+        match self {
+            Judge::Transplant => c.told_from_rivals(),
+            Judge::OnRecord => c.told_on_record(),
+        }
+    }
+
+    fn title(self) -> &'static str {
+        match self {
+            Judge::Transplant => "Told from its rivals (the hidden effect's fit beats every other candidate's and \
+                 recalibration's by ln B 3 in 9 records of 10, on the known model's noise-free record \
+                 with the effect's signature on the bench added, the form error's residual beside each)",
+            Judge::OnRecord => "Told from its rivals on the bench's own record (the same test, each candidate \
+                 fitted to the bench's noise-free record with the effect and its form error, every \
+                 recalibration of the known model re-fitted beside it)",
+        }
+    }
+}
+
+/// The identifiable cases judged against their rivals by `judge`, how many of them the
 /// record tells from every rival, and how the workflow named those, over all and per
-/// hidden effect (empty when no case was judged).
-fn rivals_line(cases: &[Case]) -> String {
+/// hidden effect (empty when no case was judged so).
+fn rivals_line(cases: &[Case], judge: Judge) -> String {
     let judged: Vec<&Case> = cases
         .iter()
-        .filter(|c| c.identifiable == Some(true) && c.rivalry.is_some())
+        .filter(|c| c.identifiable == Some(true) && judge.of(c).is_some())
         .collect();
     if judged.is_empty() {
         return String::new();
@@ -231,13 +268,11 @@ fn rivals_line(cases: &[Case]) -> String {
     let all_told: Vec<&Case> = judged
         .iter()
         .copied()
-        .filter(|c| c.told_from_rivals() == Some(true))
+        .filter(|c| judge.told(c) == Some(true))
         .collect();
     let mut line = format!(
-        "\nTold from its rivals (the hidden effect's fit beats every other candidate's and \
-         recalibration's by ln B 3 in 9 records of 10, on the known model's noise-free record \
-         with the effect's signature on the bench added, the form error's residual beside each): {} of {} identifiable cases; on \
-         those, named first {}, fitted within 25 % {}.\n",
+        "\n{}: {} of {} identifiable cases; on those, named first {}, fitted within 25 % {}.\n",
+        judge.title(),
         all_told.len(),
         judged.len(),
         rate(&all_told, Case::first_correct),
@@ -269,7 +304,7 @@ fn rivals_line(cases: &[Case]) -> String {
         per.join("; ")
     );
     for c in judged {
-        let Some(r) = &c.rivalry else { continue };
+        let Some(r) = judge.of(c) else { continue };
         let _ = writeln!(
             line,
             "- {} #{}: closest rival {} (gap {:.3} against {:.3}, form error {:.2}), ln B {:.1} +- {:.1}{}; named first: {}",

@@ -147,6 +147,7 @@ fn a_study_at_an_impossible_tolerance_is_refused() {
         },
         simulators: &[],
         form_error: true,
+        on_record: false,
         out: &out,
     })
     .unwrap_err();
