@@ -16,10 +16,14 @@ by rule:
    the known model (internal leakage, viscous friction), which the study names by its
    recalibration, is taken as named first when nothing was added and its parameter was
    recalibrated; when something was added as well the order is lost, and the case is
-   listed as ambiguous and counted as the effect added.
+   listed as ambiguous and counted as the effect added. Rows with `named_in_order`
+   (session 41 on) name as the study does, the recalibration in its place.
 4. Told = identifiable and ln B - 1.2816 sd >= 3 (`blind/rivals.rs`, `Rivalry::told`).
 
 Usage: tools/blind_tally.py [DIR] [--on-record FILE.json ...] [--cases OUT.json]
+
+The judgements on the bench's own record (`hbench blind --summarise FILE --on-record`) are
+kept apart, in DIR/on_record/ (session 41: told_session41.json), and merged by --on-record.
 """
 import argparse
 import glob
@@ -45,7 +49,7 @@ def key(sim, experiment, seed, hidden):
 
 
 def load(directory):
-    cases, ambiguous = {}, []
+    cases, ambiguous = {}, set()
     for f in sorted(glob.glob(os.path.join(directory, "*.json")), key=session):
         data = json.load(open(f))
         if not isinstance(data, list):
@@ -75,9 +79,13 @@ def load(directory):
             named = list(r["named"])
             recalibrated = r.get("recal", r.get("recalibrated", []))
             par = ON.get(hidden)
-            if par and any(par in x for x in recalibrated):
+            # the last row applied decides whether the order is lost
+            ambiguous.discard(k)
+            if r.get("named_in_order"):
+                pass  # named as the study names, in step order (session 41 on)
+            elif par and any(par in x for x in recalibrated):
                 if named:
-                    ambiguous.append(k)
+                    ambiguous.add(k)
                 else:
                     named = [hidden]
             cases[k]["named"] = named
@@ -140,7 +148,7 @@ def main():
     report(cases, "rivalry_on_record", "The bench's own record (blind/on_record.rs)")
     if ambiguous:
         print("\norder lost (an effect added beside the hidden one's recalibration; counted as the added):")
-        for k in ambiguous:
+        for k in sorted(ambiguous):
             print(f"  {k}")
     if a.cases:
         json.dump([c for _, c in sorted(cases.items())], open(a.cases, "w"), indent=1)

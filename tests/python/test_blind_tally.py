@@ -54,3 +54,21 @@ def test_on_record_judgements_are_merged_by_case(tmp_path: Path):
     judged.write_text(json.dumps([case(["payload"], ["payload"], TOLD, rivalry_on_record=UNTOLD)]))
     text = run(tmp_path, "--on-record", str(judged))
     assert "The bench's own record (blind/on_record.rs): told 0 of 1 judged" in text
+
+
+def test_a_rerun_named_in_step_order_settles_a_lost_order(tmp_path: Path):
+    (tmp_path / "set.json").write_text(json.dumps([case(["viscous_friction"], [], TOLD)]))
+    # an effect added beside the hidden viscous term's recalibration: which came first is
+    # lost, so the case is listed and counted as the added effect
+    lost = {"case": "rust_steps_1_viscous_friction", "named": ["entrained_air"],
+            "recal": ["actuator.viscous_friction"]}
+    (tmp_path / "price_session40.jsonl").write_text(json.dumps(lost) + "\n")
+    text = run(tmp_path)
+    assert "named first 0 of 1" in text and "order lost" in text
+    # a later re-run names in step order, the recalibration in its place: the order is known
+    rerun = {"case": "rust_steps_1_viscous_friction", "named_in_order": True,
+             "named": ["viscous_friction", "entrained_air"],
+             "recalibrated": ["actuator.viscous_friction"]}
+    (tmp_path / "reruns_session41.jsonl").write_text(json.dumps(rerun) + "\n")
+    text = run(tmp_path)
+    assert "named first 1 of 1 (100 %)" in text and "order lost" not in text
