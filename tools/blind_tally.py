@@ -79,11 +79,10 @@ def load(directory):
             named = list(r["named"])
             recalibrated = r.get("recal", r.get("recalibrated", []))
             par = ON.get(hidden)
-            # the last row applied decides whether the order is lost
+            # the last row applied decides whether the order is lost; a row named in step
+            # order (session 41 on) names as the study does, the recalibration in its place
             ambiguous.discard(k)
-            if r.get("named_in_order"):
-                pass  # named as the study names, in step order (session 41 on)
-            elif par and any(par in x for x in recalibrated):
+            if not r.get("named_in_order") and par and any(par in x for x in recalibrated):
                 if named:
                     ambiguous.add(k)
                 else:
