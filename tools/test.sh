@@ -10,13 +10,24 @@
 # hbench tests' CPU by test is in docs/gap.md, session 31.
 set -euo pipefail
 cd "$(dirname "$0")/.."
-bash tools/setup.sh
+# The set-up (Debian packages, the Python venv) waits on the network and the build on
+# the CPU, so they overlap: the release build needs neither (libclang-dev is for the
+# `fmi` crate's bindgen, a dev-dependency built with the tests below).
+setuplog=$(mktemp)
+pylog=$(mktemp)
+trap 'rm -f "$setuplog" "$pylog"' EXIT
+bash tools/setup.sh >"$setuplog" 2>&1 &
+setup=$!
 cargo build --release --workspace
+if ! wait "$setup"; then
+    cat "$setuplog" >&2
+    echo "set-up failed (tools/setup.sh)" >&2
+    exit 1
+fi
+cat "$setuplog" >&2
 ./target/release/hbench fmu --out target/fmu --force
 # every test binary built before either suite starts, so no test competes with rustc
 cargo test --release --workspace --no-run
-pylog=$(mktemp)
-trap 'rm -f "$pylog"' EXIT
 .venv/bin/python -m pytest -q tests/python >"$pylog" 2>&1 &
 python_suite=$!
 rust=0

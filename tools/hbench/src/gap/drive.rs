@@ -10,6 +10,8 @@ use hbmodel::{Params, Simulation};
 use super::analysis::sensor_range;
 use super::data::{Drive, Experiment, Measured};
 
+mod recent;
+
 /// Simulated samples, aligned with the measured time base.
 #[derive(Debug, Clone, PartialEq)]
 pub struct Traces {
@@ -77,8 +79,13 @@ pub fn run(
     Ok(out)
 }
 
-/// The model under the measured experiment's drive.
+/// The model under the measured experiment's drive, from the last simulations when it
+/// was run there a moment ago (`recent`).
 pub fn simulate(params: &Params, e: &Experiment, m: &Measured) -> Result<Traces, String> {
+    recent::simulated(params, e, m, || integrate(params, e, m))
+}
+
+fn integrate(params: &Params, e: &Experiment, m: &Measured) -> Result<Traces, String> {
     let n = m.time.len();
     let period = m.period();
     let samples = match &e.drive {

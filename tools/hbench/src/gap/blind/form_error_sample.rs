@@ -19,7 +19,8 @@
 //! benches: on the Rust bench viscous friction, the valve's lag and the sensor delay, on
 //! the peer the valve asymmetry, and since session 28 the manifold's volume and the
 //! sensor delay (53 and 39 CPU s, told by ln B 31 and 78, fitted 1.42 against 1.44 and
-//! 1.68 ms against 1.71 in the full study; the peer's test took 149 s wall with them).
+//! 1.68 ms against 1.71 in the full study; the peer's test took 149 s wall with them;
+//! the sensor delay left it in session 42, when the test had grown to 423 CPU s).
 //! Entrained air and internal leakage are told on neither bench's seed-1 steps (the air is
 //! a softer oil, ln B 0.5 on the peer; the leakage a null bias or a heavier mass); the CI's
 //! 2026-11-26 run had them on the peer (air not named, leakage named as its recalibration,
@@ -119,18 +120,25 @@ fn on_the_model_with_form_error_the_hidden_effect_is_named() {
     check(&cases, 3);
 }
 
+/// The peer's steps, seed 1: the valve asymmetry, the manifold's volume (the peer's
+/// manifold is lumped, not the model's network) and nothing hidden. The peer's sensor
+/// delay, told by ln B 830 and named first (1.68 ms against 1.71), was in until session
+/// 42: each of the four analyses ends far above the noise floor and is asked again, and
+/// the test took 423 CPU s alone, 540 s wall beside the other tests (2026-12-02). A
+/// sensor delay under form error stays in the CI on the Rust bench's steps (above), and
+/// its rivalry with a pressure lag in `gap::tests::a_pressure_sensor_lag_is_no_sensor_delay`
+/// and `blind::on_record`'s test.
 #[test]
 fn on_the_independent_peer_the_hidden_effect_is_named() {
     let cases: Vec<Case> = [
         Some(Effect::ValveAsymmetry),
         Some(Effect::ManifoldVolume),
-        Some(Effect::SensorDelay),
         None,
     ]
     .into_iter()
     .map(|e| judged_case(Simulator::Peer, e, Kind::Steps, 1))
     .collect();
-    check(&cases, 3);
+    check(&cases, 2);
 }
 
 /// Seed 3's form error (its own parameter errors and sensor lag) makes the manifold's
