@@ -10,21 +10,22 @@
 # hbench tests' CPU by test is in docs/gap.md, session 31.
 set -euo pipefail
 cd "$(dirname "$0")/.."
-# The set-up (Debian packages, the Python venv) waits on the network and the build on
-# the CPU, so they overlap: the release build needs neither (libclang-dev is for the
-# `fmi` crate's bindgen, a dev-dependency built with the tests below).
-setuplog=$(mktemp)
+# The Debian packages first: the build needs libclang-dev (the `fmi` crate's bindgen;
+# hbench's co-simulation master imports FMUs through it). The Python venv waits on the
+# network and the build on the CPU, so they overlap; only the tests need the venv.
+bash tools/setup.sh debian
+venvlog=$(mktemp)
 pylog=$(mktemp)
-trap 'rm -f "$setuplog" "$pylog"' EXIT
-bash tools/setup.sh >"$setuplog" 2>&1 &
-setup=$!
+trap 'rm -f "$venvlog" "$pylog"' EXIT
+bash tools/setup.sh python >"$venvlog" 2>&1 &
+venv=$!
 cargo build --release --workspace
-if ! wait "$setup"; then
-    cat "$setuplog" >&2
-    echo "set-up failed (tools/setup.sh)" >&2
+if ! wait "$venv"; then
+    cat "$venvlog" >&2
+    echo "set-up of the Python venv failed (tools/setup.sh python)" >&2
     exit 1
 fi
-cat "$setuplog" >&2
+cat "$venvlog" >&2
 ./target/release/hbench fmu --out target/fmu --force
 # every test binary built before either suite starts, so no test competes with rustc
 cargo test --release --workspace --no-run
