@@ -25,7 +25,8 @@ use super::super::data::{Experiment, Measured};
 use super::Traces;
 
 /// Simulations kept. Measured (above): 32 catch 83 % and 79 % of the repeats an
-/// unbounded store catches, 128 only 5 % more of the simulations.
+/// unbounded store catches; 128 would answer under one point more of the simulations
+/// (14.0 against 13.1 %, 11.7 against 11.3 %).
 const KEPT: usize = 32;
 
 /// Everything a simulation reads: the parameters, the experiment and the thread's
