@@ -20,6 +20,7 @@ use serde::Serialize;
 use super::common_delay::{self, SensorSay};
 use super::data::{Drive, Experiment, Measured};
 use super::effects::{Candidate, Fitted, StepKind};
+use super::evidence::{self, ADD_LN_BAYES};
 use super::fit::{fit, span, Fit, Target};
 
 /// One fold: the gap of `held_out` under the model before the step and with the
@@ -40,23 +41,62 @@ pub struct Validation {
     /// alone (`common_delay`).
     #[serde(skip_serializing_if = "Vec::is_empty")]
     pub sensors: Vec<SensorSay>,
+    /// For a candidate that brings effects it requires (the losses bring the passages'
+    /// volume and oil mass at built-in size): each of those effects' own candidate, held
+    /// out on the same folds (`Judge::validate`).
+    #[serde(skip_serializing_if = "Vec::is_empty")]
+    pub parts: Vec<Part>,
+}
+
+/// The held-out gap, fold by fold, of a candidate of one effect that a candidate of
+/// several brings, and the ln Bayes factor of the candidate of several over it on the
+/// held-out parts together (`evidence::score` with no price, counted in the
+/// several's held-out residual's independent samples).
+#[derive(Debug, Clone, Serialize)]
+pub struct Part {
+    pub effect: String,
+    pub gaps: Vec<f64>,
+    pub ln_bayes: f64,
+}
+
+/// One fold's held-out part under a fitted candidate: its gap, chi-square and
+/// independent samples (`evidence::effective_samples`).
+struct HeldOut {
+    gap: f64,
+    chi2: f64,
+    effective: f64,
 }
 
 impl Validation {
     /// Every held-out part is closer to the data than under the model before the step,
-    /// and every signal a delay of all sensors took further from the data sees some delay.
+    /// and than under each effect it brings fitted alone; every signal a delay of all
+    /// sensors took further from the data sees some delay.
     pub fn passed(&self) -> bool {
         !self.folds.is_empty()
             && self.folds.iter().all(|f| f.gap_after < f.gap_before)
             && self.sensors.iter().all(SensorSay::sees)
+            && self.unbeaten().is_none()
+    }
+
+    /// The first effect it brings that, fitted alone, it does not beat clearly on the
+    /// held-out parts (ln B ADD_LN_BAYES, the bar of an added effect: what it adds beyond
+    /// that effect is missing physics claimed too).
+    fn unbeaten(&self) -> Option<&Part> {
+        self.parts.iter().find(|p| p.ln_bayes < ADD_LN_BAYES)
     }
 
     /// Why it did not pass, in words.
-    pub fn why_refused(&self) -> &'static str {
-        if self.sensors.iter().all(SensorSay::sees) {
-            "no better on the data it was not fitted on"
-        } else {
-            "a signal it took further from the data sees no delay alone"
+    pub fn why_refused(&self) -> String {
+        if !self.sensors.iter().all(SensorSay::sees) {
+            return "a signal it took further from the data sees no delay alone".into();
+        }
+        match self.unbeaten() {
+            Some(p) if self.folds.iter().all(|f| f.gap_after < f.gap_before) => format!(
+                "not clearly better on the data it was not fitted on than `{}` alone, which \
+                 it brings (ln B {:.1})",
+                p.effect, p.ln_bayes
+            ),
+            _ => "no better on the data it was not fitted on".into(),
         }
     }
 }
@@ -266,35 +306,85 @@ impl<'a> Judge<'a> {
     /// step's (`baseline`), fold by fold; the folds run in parallel. A delay of every
     /// sensor is also read signal by signal from `whole`, its fit on all the data
     /// (`common_delay`).
-    pub fn validate(&self, whole: &Fit) -> Validation {
+    ///
+    /// `parts` are the candidates of the effects `whole` brings beside its own (the
+    /// passages' volume and oil mass the losses require). A candidate of several effects
+    /// must also beat each of them alone on what neither saw: the simpler account is taken
+    /// when the record cannot show what the rest adds. A hidden manifold volume on the
+    /// peer's steps (seed 5, form error; truth 0.98 of the thesis's volume) was named as the
+    /// losses, which brought the volume and oil mass at built-in size and fitted losses
+    /// 0.75, gap 5.55 against the volume's 5.78 (ln B 17.9, on the data both were fitted
+    /// on; the bench has neither oil mass nor losses), measured in session 43.
+    pub fn validate(&self, whole: &Fit, parts: &[&Fit]) -> Validation {
         let c = &whole.candidate;
         let before = self.baseline();
+        let after = self.held_out(c);
+        let parts = parts
+            .iter()
+            .map(|p| {
+                let alone = self.held_out(&p.candidate);
+                let ln_bayes = after
+                    .iter()
+                    .zip(&alone)
+                    .map(|(a, b)| match (a.chi2.is_finite(), b.chi2.is_finite()) {
+                        // one failed simulation of the effect alone is no evidence for it
+                        (true, false) => f64::INFINITY,
+                        _ => evidence::score(b.chi2, a.chi2, a.effective, 0.0) / 2.0,
+                    })
+                    .sum();
+                Part {
+                    effect: p.candidate.name(),
+                    gaps: alone.iter().map(|h| h.gap).collect(),
+                    ln_bayes,
+                }
+            })
+            .collect();
+        Validation {
+            effect: c.name(),
+            folds: folds(self.target, self.names)
+                .iter()
+                .zip(&after)
+                .zip(before)
+                .map(|(((held_out, _, _), a), &gap_before)| Fold {
+                    held_out: held_out.clone(),
+                    gap_before,
+                    gap_after: a.gap,
+                })
+                .collect(),
+            sensors: common_delay::each_sensor(self.target, self.names, whole),
+            parts,
+        }
+    }
+
+    /// Each fold's held-out part, `c` fitted on the fold's fitted part with the carried
+    /// parameters.
+    fn held_out(&self, c: &Candidate) -> Vec<HeldOut> {
         let parts = folds(self.target, self.names);
         let bar = crate::parallel::bar(
             parts.len(),
             &format!("held out, {}", c.name()),
             self.progress,
         );
-        let after = crate::parallel::map(
+        crate::parallel::map(
             &parts,
             &bar,
             |(held_out, _, _)| held_out.clone(),
-            |(_, fitted, left_out)| left_out.gap(&fit(fitted, self.model, c, self.carried).params),
-        );
-        Validation {
-            effect: c.name(),
-            folds: parts
-                .iter()
-                .zip(after)
-                .zip(before)
-                .map(|(((held_out, _, _), gap_after), &gap_before)| Fold {
-                    held_out: held_out.clone(),
-                    gap_before,
-                    gap_after,
-                })
-                .collect(),
-            sensors: common_delay::each_sensor(self.target, self.names, whole),
-        }
+            |(_, fitted, left_out)| {
+                let p = fit(fitted, self.model, c, self.carried).params;
+                match left_out.residuals(&p) {
+                    Some(r) => HeldOut {
+                        gap: (r.norm_squared() / r.len().max(1) as f64).sqrt(),
+                        chi2: r.norm_squared(),
+                        effective: evidence::effective_samples(r.as_slice(), &left_out.blocks()).0,
+                    },
+                    None => HeldOut {
+                        gap: f64::INFINITY,
+                        chi2: f64::INFINITY,
+                        effective: 1.0,
+                    },
+                }
+            },
+        )
     }
 }
 
@@ -436,12 +526,61 @@ mod tests {
             joint.gap
         );
         let names = ["delayed".to_string(), "plain".to_string()];
-        let v = Judge::new(&target, &names, known, &[], false).validate(&joint);
+        let v = Judge::new(&target, &names, known, &[], false).validate(&joint, &[]);
         assert!(!v.passed(), "{v:?}");
         let plain = &v.folds[1];
         assert!(
             plain.gap_after > plain.gap_before,
             "fitted on the delayed record, the delay must worsen the other: {v:?}"
+        );
+    }
+
+    /// A candidate of several effects that improves both held-out halves is refused when
+    /// one of the effects it brings, fitted alone, does as well there within ln B 3 (the
+    /// peer's seed-5 volume against the losses: 1.4, measured), and taken when it beats
+    /// every one of them clearly.
+    #[test]
+    fn several_effects_at_once_must_beat_each_they_bring_on_held_out_data() {
+        let fold = |held_out: &str, gap_after: f64| Fold {
+            held_out: held_out.into(),
+            gap_before: 20.0,
+            gap_after,
+        };
+        let part = |effect: &str, ln_bayes: f64| Part {
+            effect: effect.into(),
+            gaps: vec![10.1, 10.1],
+            ln_bayes,
+        };
+        let losses = |parts| Validation {
+            effect: "manifold_losses".into(),
+            folds: vec![fold("second half", 10.0), fold("first half", 10.0)],
+            sensors: Vec::new(),
+            parts,
+        };
+        let close = losses(vec![
+            part("manifold_inertia", 40.0),
+            part("manifold_volume", 1.4),
+        ]);
+        assert!(!close.passed());
+        assert!(
+            close.why_refused().contains("`manifold_volume` alone"),
+            "{}",
+            close.why_refused()
+        );
+        let clear = losses(vec![
+            part("manifold_inertia", 40.0),
+            part("manifold_volume", 3.5),
+        ]);
+        assert!(clear.passed());
+        // against the model before the step, the old check, still comes first
+        let worse = Validation {
+            folds: vec![fold("second half", 21.0), fold("first half", 10.0)],
+            ..clear
+        };
+        assert!(!worse.passed());
+        assert_eq!(
+            worse.why_refused(),
+            "no better on the data it was not fitted on"
         );
     }
 }

@@ -466,6 +466,25 @@ fn held_out(v: &super::holdout::Validation) -> String {
         })
         .collect();
     let mut text = format!("Held out: {}. ", folds.join("; "));
+    if !v.parts.is_empty() {
+        let each: Vec<String> = v
+            .parts
+            .iter()
+            .map(|p| {
+                let gaps: Vec<String> = p.gaps.iter().map(|g| format!("{g:.2}")).collect();
+                format!(
+                    "`{}` {} (ln B {:.1} for it over that)",
+                    p.effect,
+                    gaps.join(", "),
+                    p.ln_bayes
+                )
+            })
+            .collect();
+        text.push_str(&format!(
+            "Each effect it brings, fitted alone on the same folds: {}. ",
+            each.join("; ")
+        ));
+    }
     if !v.sensors.is_empty() {
         let each: Vec<String> = v.sensors.iter().map(|s| s.describe()).collect();
         text.push_str(&format!(

@@ -123,7 +123,8 @@ fn choose<'a, 'b>(eligible: &[&'a (Scored, &'b Fit)]) -> Option<&'a (Scored, &'b
 }
 
 /// The round's step: `choose` among the eligible candidates; an added effect must pass
-/// the held-out check, and one that does not is kept in `refusals` (never proposed again
+/// the held-out check (one that brings effects it requires, against each of them alone
+/// too), and one that does not is kept in `refusals` (never proposed again
 /// in the run) and the next choice is tried. After MAX_REFUSALS_PER_ROUND refusals the
 /// round takes only a recalibration: what is left to add is tried again next round.
 /// Returns the step and, for an added effect, its validation.
@@ -138,7 +139,15 @@ pub fn select<'a, 'b>(
         if b.1.candidate.kind != StepKind::Add {
             return Some((b, None));
         }
-        let v = judge.validate(b.1);
+        // the candidates of the effects it brings beside its own, still eligible
+        let requires = b.1.candidate.effect.map_or(&[][..], |e| e.spec().requires);
+        let parts: Vec<&Fit> = eligible
+            .iter()
+            .map(|e| e.1)
+            .filter(|f| f.candidate.kind == StepKind::Add)
+            .filter(|f| f.candidate.effect.is_some_and(|e| requires.contains(&e)))
+            .collect();
+        let v = judge.validate(b.1, &parts);
         if v.passed() {
             return Some((b, Some(v)));
         }

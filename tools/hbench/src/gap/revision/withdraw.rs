@@ -89,6 +89,7 @@ mod tests {
                 gap_after: 1.7,
             }],
             sensors: Vec::new(),
+            parts: Vec::new(),
         }
     }
 
