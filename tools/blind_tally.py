@@ -11,7 +11,8 @@ by rule:
 2. A case is the latest file's that holds it, files ordered by the session in their name
    (none: before session 33). A newer file that did not judge the case keeps the older
    judgement (`identifiable`, `rivalry`, `rivalry_on_record`).
-3. The `.jsonl` re-runs then replace what the case named, in session order. Their rows
+3. The `.jsonl` re-runs then replace what the case named, in session order, unless a
+   whole-set file of a later session holds the case (a set re-run whole is newer). Their rows
    list the added effects apart from the recalibrations, so a hidden effect that is on in
    the known model (internal leakage, viscous friction), which the study names by its
    recalibration, is taken as named first when nothing was added and its parameter was
@@ -65,6 +66,7 @@ def load(directory):
                     if c.get(field) is None and prev.get(field) is not None:
                         c[field] = prev[field]
             c["source"] = os.path.basename(f)
+            c["_session"] = session(f)
             cases[k] = c
     for f in sorted(glob.glob(os.path.join(directory, "*.jsonl")), key=session):
         for line in open(f):
@@ -74,7 +76,7 @@ def load(directory):
             else:
                 sim, experiment, seed, hidden = r["simulator"], r["experiment"], r["seed"], r["hidden"]
             k = key(sim, experiment, seed, hidden)
-            if k not in cases:
+            if k not in cases or session(f) < cases[k]["_session"]:
                 continue
             named = list(r["named"])
             recalibrated = r.get("recal", r.get("recalibrated", []))
@@ -89,6 +91,7 @@ def load(directory):
                     named = [hidden]
             cases[k]["named"] = named
             cases[k]["source"] = os.path.basename(f)
+            cases[k]["_session"] = session(f)
     return cases, ambiguous
 
 
@@ -150,7 +153,8 @@ def main():
         for k in sorted(ambiguous):
             print(f"  {k}")
     if a.cases:
-        json.dump([c for _, c in sorted(cases.items())], open(a.cases, "w"), indent=1)
+        json.dump([{f: v for f, v in c.items() if f != "_session"} for _, c in sorted(cases.items())],
+                  open(a.cases, "w"), indent=1)
 
 
 if __name__ == "__main__":

@@ -72,3 +72,14 @@ def test_a_rerun_named_in_step_order_settles_a_lost_order(tmp_path: Path):
     (tmp_path / "reruns_session41.jsonl").write_text(json.dumps(rerun) + "\n")
     text = run(tmp_path)
     assert "named first 1 of 1 (100 %)" in text and "order lost" not in text
+
+
+def test_a_set_re_run_whole_later_wins_over_an_older_re_run_row(tmp_path: Path):
+    (tmp_path / "set_session38.json").write_text(json.dumps([case(["manifold_volume"], [], TOLD)]))
+    row = {"case": "rust_steps_1_manifold_volume", "named": ["manifold_losses"], "recal": []}
+    (tmp_path / "warm_start_session39.jsonl").write_text(json.dumps(row) + "\n")
+    assert "named first 0 of 1" in run(tmp_path)
+    # the whole set run again in session 43 names the volume: its file is the newer
+    again = [case(["manifold_volume"], ["manifold_volume"], TOLD)]
+    (tmp_path / "set_session43.json").write_text(json.dumps(again))
+    assert "named first 1 of 1 (100 %)" in run(tmp_path)
