@@ -466,6 +466,20 @@ fn held_out(v: &super::holdout::Validation) -> String {
         })
         .collect();
     let mut text = format!("Held out: {}. ", folds.join("; "));
+    let records: Vec<String> = v
+        .folds
+        .iter()
+        .flat_map(|f| &f.records)
+        .map(|r| {
+            format!(
+                "the {} {:.2} -> {:.2} (ln B {:.1} against it)",
+                r.record, r.gap_before, r.gap_after, r.ln_bayes_against
+            )
+        })
+        .collect();
+    if !records.is_empty() {
+        text.push_str(&format!("Record by record: {}. ", records.join("; ")));
+    }
     if !v.parts.is_empty() {
         let each: Vec<String> = v
             .parts

@@ -87,6 +87,7 @@ mod tests {
                 held_out: "second half".into(),
                 gap_before: 1.5,
                 gap_after: 1.7,
+                records: Vec::new(),
             }],
             sensors: Vec::new(),
             parts: Vec::new(),
