@@ -284,8 +284,17 @@ fn own_folds(r: &Record) -> Option<[OwnFold; 2]> {
     ])
 }
 
-/// The (name, fitted part, held-out part) of each fold of `target`, whose records are
-/// called `names`.
+/// One fold of the data: the part fitted and the part held out.
+pub struct Split<'a> {
+    pub name: String,
+    pub fitted: Target<'a>,
+    pub held_out: Target<'a>,
+    /// With several records, the name of each record's held-out part, in `held_out`'s
+    /// order.
+    pub records: Vec<String>,
+}
+
+/// Each fold of `target`, whose records are called `names`.
 ///
 /// Several records are held out together, each by its own folds: fold j fits part j's
 /// complement of every record jointly and holds out part j of each. Before session 45 a
@@ -296,10 +305,7 @@ fn own_folds(r: &Record) -> Option<[OwnFold; 2]> {
 /// ran to its 500 N bound there) was refused, fitted on the chirp, for making the steps
 /// worse. A record that contradicts the others is still caught: `Validation::passed`
 /// refuses an effect that makes any record's held-out part clearly worse.
-pub fn folds<'a>(
-    target: &'a Target<'a>,
-    names: &[String],
-) -> Vec<(String, Target<'a>, Target<'a>)> {
+pub fn folds<'a>(target: &'a Target<'a>, names: &[String]) -> Vec<Split<'a>> {
     let records = &target.records;
     let own: Vec<Option<[OwnFold; 2]>> = records.iter().map(own_folds).collect();
     if own.iter().all(Option::is_none) {
@@ -327,33 +333,31 @@ pub fn folds<'a>(
                     .filter_map(|(r, o)| o.as_ref().map(|o| r.part(o[j].2.clone())))
                     .collect(),
             };
-            let name = if records.len() == 1 {
-                own[0].as_ref().map_or("", |o| o[j].0).to_string()
-            } else {
-                held_out_names(names, &own)
-                    .iter()
-                    .map(|(n, o)| format!("{} of {n}", o[j].0))
-                    .collect::<Vec<_>>()
-                    .join(", ")
-            };
-            (name, fitted, held_out)
-        })
-        .collect()
-}
-
-/// The names of the records that are held out (those with folds of their own), each
-/// with its folds, in the order of the held-out parts.
-fn held_out_names<'o>(
-    names: &[String],
-    own: &'o [Option<[OwnFold; 2]>],
-) -> Vec<(String, &'o [OwnFold; 2])> {
-    own.iter()
-        .enumerate()
-        .filter_map(|(k, o)| {
-            let name = names
-                .get(k)
-                .map_or_else(|| format!("record {}", k + 1), |n| format!("`{n}`"));
-            o.as_ref().map(|o| (name, o))
+            // the names of the records held out, each with its part of this fold
+            let records: Vec<String> = own
+                .iter()
+                .enumerate()
+                .filter_map(|(k, o)| {
+                    let name = names
+                        .get(k)
+                        .map_or_else(|| format!("record {}", k + 1), |n| format!("`{n}`"));
+                    o.as_ref().map(|o| format!("{} of {name}", o[j].0))
+                })
+                .collect();
+            match &own[..] {
+                [Some(o)] => Split {
+                    name: o[j].0.to_string(),
+                    fitted,
+                    held_out,
+                    records: Vec::new(),
+                },
+                _ => Split {
+                    name: records.join(", "),
+                    fitted,
+                    held_out,
+                    records,
+                },
+            }
         })
         .collect()
 }
@@ -408,12 +412,12 @@ impl<'a> Judge<'a> {
             crate::parallel::map(
                 &parts,
                 &bar,
-                |(held_out, _, _)| held_out.clone(),
-                |(_, fitted, left_out)| {
+                |f| f.name.clone(),
+                |f| {
                     if self.carried.is_empty() {
-                        HeldOut::of(left_out, self.model)
+                        HeldOut::of(&f.held_out, self.model)
                     } else {
-                        HeldOut::of(left_out, &fit(fitted, self.model, &refit, &[]).params)
+                        HeldOut::of(&f.held_out, &fit(&f.fitted, self.model, &refit, &[]).params)
                     }
                 },
             )
@@ -458,26 +462,23 @@ impl<'a> Judge<'a> {
                 }
             })
             .collect();
-        let own: Vec<_> = self.target.records.iter().map(own_folds).collect();
-        let names = held_out_names(self.names, &own);
         Validation {
             effect: c.name(),
             folds: folds(self.target, self.names)
                 .iter()
                 .zip(&after)
                 .zip(before)
-                .enumerate()
-                .map(|(j, (((held_out, _, _), a), b))| Fold {
-                    held_out: held_out.clone(),
+                .map(|((f, a), b)| Fold {
+                    held_out: f.name.clone(),
                     gap_before: b.gap,
                     gap_after: a.gap,
                     records: a
                         .records
                         .iter()
                         .zip(&b.records)
-                        .zip(&names)
-                        .map(|((a, b), (name, o))| RecordFold {
-                            record: format!("{} of {name}", o[j].0),
+                        .zip(&f.records)
+                        .map(|((a, b), record)| RecordFold {
+                            record: record.clone(),
                             gap_before: b.gap,
                             gap_after: a.gap,
                             ln_bayes_against: match (a.chi2.is_finite(), b.chi2.is_finite()) {
@@ -505,9 +506,12 @@ impl<'a> Judge<'a> {
         crate::parallel::map(
             &parts,
             &bar,
-            |(held_out, _, _)| held_out.clone(),
-            |(_, fitted, left_out)| {
-                HeldOut::of(left_out, &fit(fitted, self.model, c, self.carried).params)
+            |f| f.name.clone(),
+            |f| {
+                HeldOut::of(
+                    &f.held_out,
+                    &fit(&f.fitted, self.model, c, self.carried).params,
+                )
             },
         )
     }

@@ -32,9 +32,9 @@ fn windows_of(kind: Kind) -> (usize, Windows) {
     };
     let windows = folds(&one, &[kind.name().to_string()])
         .iter()
-        .map(|(name, fitted, left)| {
+        .map(|f| {
             let w = |t: &Target| t.records[0].window.clone();
-            (name.clone(), w(fitted), w(left))
+            (f.name.clone(), w(&f.fitted), w(&f.held_out))
         })
         .collect();
     (m.time.len(), windows)
@@ -72,7 +72,16 @@ fn folds_leave_out_each_part_once() {
     let halves = ["second half", "first half"];
     let folds = folds(&two, &names);
     assert_eq!(folds.len(), 2);
-    for (k, (name, fitted, left)) in folds.iter().enumerate() {
+    for (
+        k,
+        Split {
+            name,
+            fitted,
+            held_out: left,
+            ..
+        },
+    ) in folds.iter().enumerate()
+    {
         let h = halves[k];
         assert_eq!(name, &format!("{h} of `a`, {h} of `b`"));
         assert_eq!((fitted.records.len(), left.records.len()), (2, 2));
