@@ -176,7 +176,7 @@ pub fn case_with(
     kinds: &[Kind],
     seed: u64,
 ) -> Result<Case, String> {
-    case_advised(sim, form_error, hidden, kinds, seed, study())
+    case_advised(sim, form_error, hidden, kinds, seed, study(), None)
 }
 
 /// Effects an outcome named, in order: each added effect followed by those it brought
@@ -229,6 +229,12 @@ fn fitted_of(
 /// 6): when the hidden effect was not named first, the bench is recorded again under the
 /// design the workflow recommended (new noise); that record alone is analysed afresh, and
 /// the advice's question is decided on it (`decision::decide`).
+///
+/// With `report_to` the analysis's report (`report::write`: report.md, report.json and
+/// the figures) is kept in that directory, as `hbench gap` writes it: a case's numbers
+/// in blind.json say what was named, the report says why (each fold's held-out gaps,
+/// each refusal's reason), which blind.json alone could not tell of the joint volume
+/// case in session 45.
 pub fn case_advised(
     sim: Simulator,
     form_error: bool,
@@ -236,6 +242,7 @@ pub fn case_advised(
     kinds: &[Kind],
     seed: u64,
     settings: super::Settings,
+    report_to: Option<&Path>,
 ) -> Result<Case, String> {
     let follow = settings.advise;
     let s = Setup::new(sim, form_error, hidden, seed);
@@ -262,6 +269,11 @@ pub fn case_advised(
     let cpu = crate::bench::cpu::process_seconds();
     let outcome = super::run_with(base, &records, settings)?;
     let cpu_seconds = crate::bench::cpu::process_seconds() - cpu;
+    if let Some(dir) = report_to {
+        std::fs::create_dir_all(dir)
+            .map_err(|e| format!("cannot create {}: {e}", dir.display()))?;
+        super::report::write(dir, &outcome, None)?;
+    }
     let (path, value) = match drawn.first() {
         Some((p, v)) => (*p, Some(*v)),
         None => ("", None),
@@ -510,7 +522,17 @@ pub fn main(o: &Options) -> Result<(), String> {
             kinds.iter().map(|k| k.name()).collect::<Vec<_>>().join("+")
         );
         bar.set_message(label.clone());
-        match case_advised(sim, form_error, &set, &kinds, seed, o.study) {
+        // each case's report beside blind.json, named as its label
+        let report_to = out.join("cases").join(label.replace([' ', '#'], "_"));
+        match case_advised(
+            sim,
+            form_error,
+            &set,
+            &kinds,
+            seed,
+            o.study,
+            Some(&report_to),
+        ) {
             Ok(mut c) => {
                 c.rivalry = judged(&c, &label);
                 // the record's own judgement where the effect shows at all

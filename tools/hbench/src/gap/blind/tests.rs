@@ -76,6 +76,7 @@ fn every_hidden_effect_is_named_first_and_fitted() {
 /// and fit it (measured: a +-3.4 mm sweep in mode 3, which names the air).
 #[test]
 fn air_on_steps_is_told_from_a_softer_oil_by_the_advised_record() {
+    let kept = std::env::temp_dir().join(format!("hb-blind-case-{}", std::process::id()));
     let c = case_advised(
         Simulator::Rust,
         false,
@@ -86,8 +87,21 @@ fn air_on_steps_is_told_from_a_softer_oil_by_the_advised_record() {
             advise: true,
             ..study()
         },
+        Some(&kept),
     )
     .unwrap();
+    // the case's report is kept, and it is the analysis blind.json tells of
+    let text = std::fs::read_to_string(kept.join("report.json")).expect("the case's report");
+    let report: serde_json::Value = serde_json::from_str(&text).expect("JSON");
+    let added: Vec<&str> = report["steps"]
+        .as_array()
+        .expect("steps")
+        .iter()
+        .filter(|s| s["kind"] == "add")
+        .filter_map(|s| s["effect"].as_str())
+        .collect();
+    assert_eq!(added.first().copied(), c.named.first().map(String::as_str));
+    let _ = std::fs::remove_dir_all(&kept);
     if c.first_correct() {
         // named on the steps already: then it must be fitted as the others are
         check(&c);

@@ -37,6 +37,10 @@ impl Fit {
     /// scale 0.0, the passages at their nominal size (gap 1.76 against the volume's 1.46,
     /// which had the bulk modulus on its -15 %), and the run named the losses first
     /// (measured, session 27).
+    ///
+    /// So is an effect whose size fitted to its floor of none while parameters of its law
+    /// the fit does not move still act (`sized_from_none`: the dry friction at 0 N
+    /// Coulomb keeps its static peak).
     pub fn on_bound(&self) -> Option<(&'static str, f64)> {
         self.bounded().into_iter().next()
     }
@@ -57,10 +61,29 @@ impl Fit {
             .filter_map(|(k, (f, &(path, v)))| {
                 let s = span_position(f, v);
                 let narrow = f.bounds.is_some() && !(ON_BOUND..=1.0 - ON_BOUND).contains(&s);
-                let absent = switches_others && k < own && s < ON_BOUND;
+                let absent = k < own
+                    && s < ON_BOUND
+                    && (switches_others || k == 0 && self.sized_from_none(f));
                 (narrow || absent).then_some((path, v))
             })
             .collect()
+    }
+
+    /// It adds an effect whose size, its first parameter, is linear from a physical floor
+    /// of none (`friction.coulomb` from 0 N), while the law's parameters the fit leaves at
+    /// their defaults still act: fitted to that floor, the effect fitted as its absence
+    /// plus what those defaults add, which is no model of the effect it is named after.
+    /// Joint steps and chirp on the Rust bench (seed 2, form error, dry friction hidden
+    /// with a Coulomb level of 27.6 N) added `dry_friction` with the Coulomb level at
+    /// 0.0 N (std 3.3 N): what fitted was the law's 20 N static peak alone, decaying above
+    /// the Stribeck velocity (measured, session 45). A log parameter never reaches its
+    /// floor of none (`Coordinate::new` puts it three decades under the plausible range),
+    /// and a fit bounded narrower than the registry is counted as `narrow` already.
+    fn sized_from_none(&self, f: &Fitted) -> bool {
+        self.candidate.kind == StepKind::Add
+            && !f.log
+            && f.bounds.is_none()
+            && hbmodel::params::param(f.path).is_some_and(|p| p.min == 0.0)
     }
 
     /// It adds an effect that switches others on (the losses bring the distributed

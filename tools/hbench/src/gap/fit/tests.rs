@@ -119,6 +119,18 @@ fn a_fit_that_ended_on_a_bound_is_told() {
     assert_eq!(at(1.0).on_bound(), None);
     // at its physical ceiling it is no absence
     assert_eq!(at(10.0).on_bound(), None);
+    // nor is an effect whose size fitted to none while its law's other parameters still
+    // act: the dry friction at 0 N Coulomb is its static peak alone
+    let dry = candidate(Effect::DryFriction).expect("a candidate");
+    let at = |f_c: f64| ended_at(&dry, vec![], vec![("friction.coulomb", f_c)]);
+    assert_eq!(at(0.0).on_bound(), Some(("friction.coulomb", 0.0)));
+    assert_eq!(at(27.6).on_bound(), None);
+    // a recalibration of the friction already on is no added effect: its floor of none
+    // is a fit the data chose
+    let mut re = dry.clone();
+    re.kind = crate::gap::effects::StepKind::Recalibrate;
+    let at = |f_c: f64| ended_at(&re, vec![], vec![("friction.coulomb", f_c)]);
+    assert_eq!(at(0.0).on_bound(), None);
 }
 
 /// The spread reports the value the fit ended at, even nearer a bound than the clamp of
