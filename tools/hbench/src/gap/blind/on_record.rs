@@ -159,12 +159,21 @@ mod tests {
     /// cannot show this friction to the model. A 0.31 ms sensor delay on the same bench
     /// stays told on its record (ln B 766 +- 14 over the manifold's volume, gap 1.77
     /// against 3.94 with the bulk modulus held, measured).
+    ///
+    /// Since session 46 the dry friction's own fit there is on a bound: its Coulomb level
+    /// fits to 0 N (gap 2.03, its static peak alone acting; `Fit::on_bound`), and the
+    /// drawn 27.6 N fits no better, so the record is judged unable to show it before any
+    /// rival is fitted.
     #[test]
     fn a_pressure_lag_hides_a_dry_friction_on_the_record_but_not_a_delay() {
         let judge = |e: Effect| on_rust_steps(rivalry, true, 2, e);
         let dry = judge(Effect::DryFriction);
         assert!(!dry.told(), "{dry:?}");
-        assert!(dry.rival_gap < dry.hidden_gap, "{dry:?}");
+        assert!(
+            dry.rival
+                .starts_with("its own fit, on a bound (friction.coulomb"),
+            "{dry:?}"
+        );
         let delay = judge(Effect::SensorDelay);
         assert!(delay.told(), "{delay:?}");
         assert!(delay.hidden_gap < delay.rival_gap, "{delay:?}");
