@@ -157,7 +157,7 @@ impl Declaration for ActuatorDecl {
                 .map(|(k, &(name, d, unit))| output(5 + k, name, d, unit).depends_on(&[])),
         );
         v.extend(port_inputs(&PASSAGE_INPUTS, PASSAGES));
-        v.push(super::fixed_step_parameter());
+        v.extend(super::fixed_step_parameter());
         v
     }
 

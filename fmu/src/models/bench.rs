@@ -169,7 +169,7 @@ impl Model for BenchFmu {
         ));
         v.extend(effect_switches(&Effect::ALL, &d));
         v.extend(registry_parameters(|_| true, str::to_string));
-        v.push(super::fixed_step_parameter());
+        v.extend(super::fixed_step_parameter());
         v
     }
 

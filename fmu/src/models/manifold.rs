@@ -126,7 +126,7 @@ impl Declaration for ManifoldDecl {
                     output(6 + k, name, d, unit).depends_on(&["P1", "P2"])
                 }),
         );
-        v.push(super::fixed_step_parameter());
+        v.extend(super::fixed_step_parameter());
         v
     }
 

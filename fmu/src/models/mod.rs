@@ -14,7 +14,7 @@ use std::sync::{Mutex, OnceLock};
 
 use hbmodel::effects::Effect;
 use hbmodel::params::ValveModel;
-use hbmodel::params::{param, ParamSpec, PARAMS};
+use hbmodel::params::{ParamSpec, PARAMS};
 use hbmodel::Params;
 
 use crate::instance::{Component, Instance, Logger};
@@ -274,13 +274,16 @@ fn registry_parameter<M: HasParams + 'static>(spec: &'static ParamSpec, name: &s
 /// the value references it had before the mode existed keep their numbers.
 pub const FIXED_STEP: &str = "solver.fixed_step";
 
-/// The `solver.fixed_step` parameter (see [`FIXED_STEP`]).
-pub fn fixed_step_parameter<M: HasParams + 'static>() -> VarDef<M> {
-    // the registry declares it (params::PARAMS), so the look-up cannot miss; the specs
-    // are built at packaging and at instantiation, inside the ABI's panic guard
-    // (lib.rs, catch_unwind), and every FMU's packaging test builds them
-    let spec = param(FIXED_STEP).expect("solver.fixed_step is in the registry");
-    registry_parameter(spec, FIXED_STEP)
+/// The `solver.fixed_step` parameter (see [`FIXED_STEP`]), as the registry declares it.
+///
+/// Found by filtering the registry rather than by a look-up that could fail, so no
+/// panic path exists here; the registry always holds it (params::PARAMS), and every
+/// FMU's packaging test checks the variable is declared.
+pub fn fixed_step_parameter<M: HasParams + 'static>() -> impl Iterator<Item = VarDef<M>> {
+    PARAMS
+        .iter()
+        .filter(|spec| spec.path == FIXED_STEP)
+        .map(|spec| registry_parameter(spec, FIXED_STEP))
 }
 
 /// `effect.<name>` Boolean switches for the given effects.

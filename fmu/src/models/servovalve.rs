@@ -132,7 +132,7 @@ impl Declaration for ServovalveDecl {
                     .depends_on(&["u", "P_P", "P_T", "P_A", "P_B"]),
             );
         }
-        v.push(super::fixed_step_parameter());
+        v.extend(super::fixed_step_parameter());
         v
     }
 
