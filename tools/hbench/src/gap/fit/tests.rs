@@ -117,8 +117,13 @@ fn a_fit_that_ended_on_a_bound_is_told() {
     let at = |scale: f64| ended_at(&losses, vec![], vec![("manifold.loss_scale", scale)]);
     assert_eq!(at(0.0).on_bound(), Some(("manifold.loss_scale", 0.0)));
     assert_eq!(at(1.0).on_bound(), None);
-    // at its physical ceiling it is no absence
-    assert_eq!(at(10.0).on_bound(), None);
+    // at its physical ceiling it is no absence, but the ceiling stopped it: the data
+    // asked for more loss than the law allows
+    assert_eq!(at(10.0).on_bound(), Some(("manifold.loss_scale", 10.0)));
+    assert_eq!(at(9.0).on_bound(), None);
+    // as they asked for more air than the registry's 10 % (the peer's joint volume)
+    let at_ceiling = ended_at(&air, vec![], vec![("fluid.air_fraction", 0.1)]);
+    assert_eq!(at_ceiling.on_bound(), Some(("fluid.air_fraction", 0.1)));
     // nor is an effect whose size fitted to none while its law's other parameters still
     // act: the dry friction at 0 N Coulomb is its static peak alone
     let dry = candidate(Effect::DryFriction).expect("a candidate");
