@@ -277,8 +277,9 @@ pub const FIXED_STEP: &str = "solver.fixed_step";
 /// The `solver.fixed_step` parameter (see [`FIXED_STEP`]), as the registry declares it.
 ///
 /// Found by filtering the registry rather than by a look-up that could fail, so no
-/// panic path exists here; the registry always holds it (params::PARAMS), and every
-/// FMU's packaging test checks the variable is declared.
+/// panic path exists here; the registry always holds it (params::PARAMS), and
+/// `tests/python/test_realtime.py` checks it is the last variable of every FMU with an
+/// integrator.
 pub fn fixed_step_parameter<M: HasParams + 'static>() -> impl Iterator<Item = VarDef<M>> {
     PARAMS
         .iter()

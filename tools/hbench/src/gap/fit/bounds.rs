@@ -58,7 +58,7 @@ impl Fit {
     /// question is held (`revision::pinned_by_all`), also when a candidate's own
     /// parameter reached a bound before it in this list.
     pub fn bounded(&self) -> Vec<(&'static str, f64)> {
-        let switches_others = self.switches_others();
+        let (adds, switches_others) = (self.adds(), self.switches_others());
         let own = self.candidate.fitted.len();
         self.candidate
             .fitted
@@ -69,10 +69,13 @@ impl Fit {
             .filter_map(|(k, (f, &(path, v)))| {
                 let s = span_position(f, v);
                 let narrow = f.bounds.is_some() && !(ON_BOUND..=1.0 - ON_BOUND).contains(&s);
-                let absent = k < own
+                // the added effect's own parameters: at its floor only when that floor
+                // is no absence, at its ceiling always
+                let own_added = k < own && adds;
+                let absent = own_added
                     && s < ON_BOUND
                     && (switches_others || k == 0 && self.sized_from_none(f));
-                let beyond = k < own && self.adds() && s > 1.0 - ON_BOUND;
+                let beyond = own_added && s > 1.0 - ON_BOUND;
                 (narrow || absent || beyond).then_some((path, v))
             })
             .collect()

@@ -124,8 +124,8 @@ fn a_fit_that_ended_on_a_bound_is_told() {
     // as they asked for more air than the registry's 10 % (the peer's joint volume)
     let at_ceiling = ended_at(&air, vec![], vec![("fluid.air_fraction", 0.1)]);
     assert_eq!(at_ceiling.on_bound(), Some(("fluid.air_fraction", 0.1)));
-    // nor is an effect whose size fitted to none while its law's other parameters still
-    // act: the dry friction at 0 N Coulomb is its static peak alone
+    // and so is an effect whose size fitted to none while its law's other parameters
+    // still act: the dry friction at 0 N Coulomb is its static peak alone
     let dry = candidate(Effect::DryFriction).expect("a candidate");
     let at = |f_c: f64| ended_at(&dry, vec![], vec![("friction.coulomb", f_c)]);
     assert_eq!(at(0.0).on_bound(), Some(("friction.coulomb", 0.0)));
