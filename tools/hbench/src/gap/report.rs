@@ -472,8 +472,14 @@ fn held_out(v: &super::holdout::Validation) -> String {
         .flat_map(|f| &f.records)
         .map(|r| {
             format!(
-                "the {} {:.2} -> {:.2} (ln B {:.1} against it)",
-                r.record, r.gap_before, r.gap_after, r.ln_bayes_against
+                "the {} {:.2} -> {:.2} (ln B {:.1} against it; the rest of that record, \
+                 fitted on, {:.2} -> {:.2})",
+                r.record,
+                r.gap_before,
+                r.gap_after,
+                r.ln_bayes_against,
+                r.fitted_gap_before,
+                r.fitted_gap_after
             )
         })
         .collect();

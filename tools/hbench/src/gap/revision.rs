@@ -34,8 +34,8 @@
 //! run added after it are asked beside its rival (`movers`): one of them may be what the
 //! step took the place of.
 //! When the question refuses the step's own choice, an added effect, on the data it was
-//! not fitted on, and names no rival clearly, the run is continued from that step without
-//! it (`withdraw`): the check the step passed with what the run knew then fails
+//! not fitted on, or fits it onto a bound of its own parameters, and names no rival
+//! clearly, the run is continued from that step without it (`withdraw`): the check the step passed with what the run knew then fails
 //! with what the run learned later.
 //! A question asked after another (held or widened) starts each fit from the other's fit
 //! of the same candidate as well as cold, and keeps the lower end (`fit::fit_warm`): the
@@ -267,10 +267,9 @@ fn ask_again<'t>(
         others: Vec::new(),
     };
     if !clear_for_rival {
-        if let Some(refused) = withdraw::refused_choice(step, &d.refused) {
-            let refused = refused.clone();
-            let (continued, ln_b) = withdraw::continue_without(run, earlier, &asked, &refused);
-            report.verdict = withdraw::verdict(&report, &refused, (continued.gap, run.gap), ln_b);
+        if let Some(w) = withdraw::withdrawal(step, &asked) {
+            let (continued, ln_b) = withdraw::continue_without(run, earlier, &asked, &w);
+            report.verdict = withdraw::verdict(&report, &w, (continued.gap, run.gap), ln_b);
             report.continued = Some(Path::of(&continued));
             report.ln_bayes_factor = Some(ln_b);
             report.revised = true;

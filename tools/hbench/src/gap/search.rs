@@ -38,6 +38,10 @@ pub struct Search<'t> {
     pub rounds: Vec<advice::Round>,
     /// Effects that won a round but did not improve the data they were not fitted on.
     pub refusals: Vec<Validation>,
+    /// Added effects the end question withdrew because, fitted again with the run's later
+    /// recalibrations, they ended on a bound of their own (`revision::withdraw`): never
+    /// proposed again in the run continued without them.
+    pub withdrawn: Vec<String>,
     /// The known model's parameters recalibrated, for the advice's question.
     pub recalibrated: Vec<&'static str>,
     /// The last round's candidates when it added nothing: why the search stopped.
@@ -72,6 +76,7 @@ impl<'t> Search<'t> {
             carried: Vec::new(),
             rounds: Vec::new(),
             refusals: Vec::new(),
+            withdrawn: Vec::new(),
             recalibrated: Vec::new(),
             rejected: Vec::new(),
             effective: target.len() as f64,
@@ -149,7 +154,9 @@ impl<'t> Search<'t> {
         let eligible: Vec<&(Scored, &Fit)> = scored
             .iter()
             .filter(|(s, f)| {
-                s.worth_adding(gap) && !self.refusals.iter().any(|v| v.effect == f.name)
+                s.worth_adding(gap)
+                    && !self.refusals.iter().any(|v| v.effect == f.name)
+                    && !self.withdrawn.contains(&f.name)
             })
             .collect();
         let judge = holdout::Judge::new(

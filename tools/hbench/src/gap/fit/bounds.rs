@@ -43,6 +43,11 @@ impl Fit {
     /// the fit does not move still act (`sized_from_none`: the dry friction at 0 N
     /// Coulomb keeps its static peak).
     ///
+    /// So is an added effect whose own parameter ended at a registry floor that is no
+    /// absence (`real_floor`: the passages' volume or oil mass at 0.3 of Table 3.3/3.4,
+    /// SV2's null bias at -1 V): the data asked for less than the law allows, as at a
+    /// ceiling below.
+    ///
     /// And so is an added effect whose own parameter ended at the ceiling of its fit,
     /// physical or not: a ceiling never means "none", the data asked for more than the
     /// law allows, so the law is not what they show. Joint steps and chirp on the peer
@@ -74,7 +79,7 @@ impl Fit {
                 let own_added = k < own && adds;
                 let absent = own_added
                     && s < ON_BOUND
-                    && (switches_others || k == 0 && self.sized_from_none(f));
+                    && (switches_others || k == 0 && self.sized_from_none(f) || real_floor(f));
                 let beyond = own_added && s > 1.0 - ON_BOUND;
                 (narrow || absent || beyond).then_some((path, v))
             })
@@ -123,6 +128,23 @@ impl Fit {
                 .first()
                 .is_some_and(|f| span_position(f, self.values[0].1) < ON_BOUND)
     }
+}
+
+/// `f` is fitted within the registry's physical bounds and the floor of its coordinate
+/// is a value of the law, not its absence: a linear parameter whose floor is not 0 (the
+/// manifold's volume and inertia scales from 0.3, an offset from -1 V), a log one whose
+/// registry floor lies above the three decades under its plausible range that
+/// `Coordinate::new` would put it at (a floor of none is 0 on a linear scale and that
+/// point on a log one).
+fn real_floor(f: &Fitted) -> bool {
+    f.bounds.is_none()
+        && hbmodel::params::param(f.path).is_some_and(|p| {
+            if f.log {
+                p.min >= f.plausible[0] * 1e-3
+            } else {
+                p.min != 0.0
+            }
+        })
 }
 
 /// Where `v` lies in the span of `f`'s bounded coordinate, 0 at its lower end and 1 at

@@ -124,6 +124,18 @@ fn a_fit_that_ended_on_a_bound_is_told() {
     // as they asked for more air than the registry's 10 % (the peer's joint volume)
     let at_ceiling = ended_at(&air, vec![], vec![("fluid.air_fraction", 0.1)]);
     assert_eq!(at_ceiling.on_bound(), Some(("fluid.air_fraction", 0.1)));
+    // and at a floor of the law that is no absence: passages of 0.3 of Table 3.3's
+    // volume are the data asking for less than the law allows, not for no passages
+    let volume = candidate(Effect::ManifoldVolume).expect("a candidate");
+    let at = |scale: f64| ended_at(&volume, vec![], vec![("manifold.volume_scale", scale)]);
+    assert_eq!(at(0.3).on_bound(), Some(("manifold.volume_scale", 0.3)));
+    assert_eq!(at(0.35).on_bound(), None);
+    // while the null leakage's log floor, three decades under its plausible range, is
+    // the absence of leakage
+    let leak = candidate(Effect::InternalLeakage).expect("a candidate");
+    let none = Coordinate::new(&leak.fitted[0]).lo;
+    let at_none = ended_at(&leak, vec![], vec![("sv1.null_leakage", none)]);
+    assert_eq!(at_none.on_bound(), None);
     // and so is an effect whose size fitted to none while its law's other parameters
     // still act: the dry friction at 0 N Coulomb is its static peak alone
     let dry = candidate(Effect::DryFriction).expect("a candidate");
