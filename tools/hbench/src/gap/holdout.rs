@@ -60,13 +60,17 @@ impl RecordFold {
     /// How the record's fitted part fared is reported beside it (`fitted_gap_before`,
     /// `fitted_gap_after`) but does not waive the refusal. Session 48 measured such a
     /// waiver (refuse only when the fitted part is no better either) on the peer's steps +
-    /// chirp (seed 1, form error, 12 cases) and the Rust bench's (seed 2, 6 cases): it
-    /// turned no case, and the manifold volume it was written for is worse on both parts
-    /// of the chirp (held-out even pieces 3.42 -> 4.33, ln B 30.8 against; fitted odd
-    /// pieces 4.24 -> 4.34), a contradiction either way. It did waive the losses there
-    /// (held out 3.42 -> 4.07, ln B 22.7 against) for a fitted part 1 % better (4.24 ->
-    /// 4.19): a candidate that fits the part it saw and mispredicts the rest of the same
-    /// record is the overfitting the held-out check is for.
+    /// chirp (seed 1, form error, 12 cases) and the Rust bench's (seed 2, 6 cases). The
+    /// manifold volume it was written for is worse on both parts of the chirp (held-out
+    /// even pieces 3.42 -> 4.33, ln B 30.8 against; fitted odd pieces 4.24 -> 4.34), a
+    /// contradiction either way, and stayed refused. It waived two record folds: the
+    /// losses on that record (held out 3.42 -> 4.07, ln B 22.7 against) for a fitted part
+    /// 1 % better (4.24 -> 4.19), refused for another reason anyway; and the volume in
+    /// the volume + oil mass + losses case's end question (chirp odd pieces, ln B 61.8
+    /// against), which then let the run stand with the volume first where, refused, it
+    /// had continued to the oil mass (both hidden). A candidate that fits the part of a
+    /// record it saw and mispredicts the rest of it is the overfitting the held-out check
+    /// is for.
     fn contradicts(&self) -> bool {
         self.ln_bayes_against >= CLEAR_LN_BAYES
     }

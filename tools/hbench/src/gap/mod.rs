@@ -564,7 +564,7 @@ pub fn main(
     if model.is_none() {
         println!(
             "started from {}",
-            report::start_note(None).replace("**", "")
+            report::start_note(None, &start).replace("**", "")
         );
     }
     for step in &outcome.steps {

@@ -223,9 +223,20 @@ fn noise_json(noise: &[(&'static str, f64)]) -> serde_json::Map<String, serde_js
 
 /// What the user said the starting model was: a parameter file, or nothing (the built-in
 /// parameters with every effect off).
-pub fn start_note(model: Option<&Path>) -> String {
+///
+/// A run handed its model in code (`hbench blind`'s known model, section 4.4's with form
+/// error) has no file and is no default model either: its effects are on. Until session
+/// 48 every blind case's report said "every effect off" above the list of the two it
+/// had on.
+pub fn start_note(model: Option<&Path>, start: &hbmodel::Params) -> String {
     match model {
         Some(f) => format!("the parameter file `{}`", f.display()),
+        None if start.effects.active().next().is_some() => {
+            "the built-in parameters with the effects listed on, handed over without a file \
+             (`hbench blind`'s known model: never the structure of the bench that made the \
+             record)"
+                .into()
+        }
         None => "the built-in parameters with every effect off (no `--model`). **The first \
                  effects named from it are often what every bench has, friction and leakage, \
                  not what this bench lacks** (issue 14: from the default model a hidden \
@@ -320,7 +331,7 @@ pub fn write(out: &Path, o: &Outcome, model: Option<&Path>) -> Result<(), String
     let _ = writeln!(
         md,
         "\nStarting model: {}; effects on: {}.\n",
-        start_note(model),
+        start_note(model, &o.start),
         list(o.start.effects.active().map(|x| x.name()))
     );
     let _ = writeln!(
@@ -571,7 +582,22 @@ const STRONG_CORRELATION: f64 = 0.8;
 
 #[cfg(test)]
 mod tests {
-    use super::unwrap_phase;
+    use super::{start_note, unwrap_phase};
+
+    /// The report says where the run started as it did: a file, the built-in parameters
+    /// with every effect off, or a model handed over in code with effects on (a blind
+    /// case's section 4.4 model, whose reports said "every effect off" until session 48).
+    #[test]
+    fn the_starting_model_is_named_as_it_was() {
+        let default = hbmodel::Params::default();
+        assert!(start_note(None, &default).contains("every effect off"));
+        let known = crate::gap::variants::section_4_4();
+        let note = start_note(None, &known);
+        assert!(!note.contains("every effect off"), "{note}");
+        assert!(note.contains("effects listed on"), "{note}");
+        let file = std::path::Path::new("bench.toml");
+        assert!(start_note(Some(file), &known).contains("`bench.toml`"));
+    }
 
     #[test]
     fn phase_is_unwrapped_through_minus_180() {
