@@ -548,4 +548,4 @@ pub fn spread(target: &Target, fit: &Fit, tau: f64) -> Vec<Spread> {
 }
 
 #[cfg(test)]
-mod tests;
+pub(crate) mod tests;

@@ -34,8 +34,9 @@
 //! run added after it are asked beside its rival (`movers`): one of them may be what the
 //! step took the place of.
 //! When the question refuses the step's own choice, an added effect, on the data it was
-//! not fitted on, or fits it onto a bound of its own parameters, and names no rival
-//! clearly, the run is continued from that step without it (`withdraw`): the check the step passed with what the run knew then fails
+//! not fitted on, or takes no candidate and fits it onto a physical bound of its own
+//! parameters, and names no rival clearly, the run is continued from that step without
+//! it (`withdraw`): the check the step passed with what the run knew then fails
 //! with what the run learned later.
 //! A question asked after another (held or widened) starts each fit from the other's fit
 //! of the same candidate as well as cold, and keeps the lower end (`fit::fit_warm`): the

@@ -39,8 +39,8 @@ pub struct Search<'t> {
     /// Effects that won a round but did not improve the data they were not fitted on.
     pub refusals: Vec<Validation>,
     /// Added effects the end question withdrew because, fitted again with the run's later
-    /// recalibrations, they ended on a bound of their own (`revision::withdraw`): never
-    /// proposed again in the run continued without them.
+    /// recalibrations, they ended on a physical bound of their own
+    /// (`revision::withdraw`): never proposed again in the run continued without them.
     pub withdrawn: Vec<String>,
     /// The known model's parameters recalibrated, for the advice's question.
     pub recalibrated: Vec<&'static str>,

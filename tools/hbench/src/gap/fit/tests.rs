@@ -186,7 +186,11 @@ fn the_spread_reports_a_value_next_to_its_bound_as_fitted() {
 }
 
 /// A fit of `c`, with `carried`, that ended at `values` (no simulation behind it).
-fn ended_at(c: &Candidate, carried: Vec<Fitted>, values: Vec<(&'static str, f64)>) -> Fit {
+pub(crate) fn ended_at(
+    c: &Candidate,
+    carried: Vec<Fitted>,
+    values: Vec<(&'static str, f64)>,
+) -> Fit {
     Fit {
         candidate: c.clone(),
         carried,

@@ -21,10 +21,10 @@
 //! ceiling rule of session 47 had taken the question's held-out refusal away).
 //!
 //! The run is then continued from before the step without the choice, which is kept
-//! among the run's refusals or withdrawals (never proposed again), and the continued run is reported
-//! whatever the information criterion says of its end: an effect is added only if it
-//! improves what it was not fitted on (issue 14 item 2), and the criterion, on the data
-//! the choice was fitted on, cannot say that.
+//! among the run's refusals or withdrawals (never proposed again), and the continued run
+//! is reported whatever the information criterion says of its end: an effect is added
+//! only if it improves what it was not fitted on (issue 14 item 2), and the criterion, on
+//! the data the choice was fitted on, cannot say that.
 
 use super::super::decision::Asked;
 use super::super::effects::StepKind;
@@ -187,7 +187,7 @@ mod tests {
     }
 
     /// The end question's fit of the step's added effect withdraws it only when one of
-    /// the effect's own parameters ended on a bound of its fit: the Rust bench's joint
+    /// the effect's own parameters ended on a physical bound: the Rust bench's joint
     /// steps + chirp (seed 2, form error, viscous friction hidden; session 48) asked the
     /// air again with the mass and viscous friction beside it and fitted 0.0995, on the
     /// registry's 10 % ceiling. A carried recalibration on its few percent is the
@@ -195,6 +195,7 @@ mod tests {
     #[test]
     fn an_added_effect_the_question_fits_onto_its_own_bound_is_withdrawn() {
         use crate::gap::effects::{candidate, Fitted};
+        use crate::gap::fit::tests::ended_at;
         use hbmodel::effects::Effect;
         use hbmodel::Params;
         let air = candidate(Effect::EntrainedAir).expect("a candidate");
@@ -205,15 +206,12 @@ mod tests {
             either_sign: false,
             bounds: Some([4.9, 6.7]),
         };
-        let fit = |fraction: f64, kg: f64| Fit {
-            candidate: air.clone(),
-            carried: vec![mass],
-            name: air.name(),
-            params: Params::default(),
-            values: vec![("fluid.air_fraction", fraction), ("actuator.mass", kg)],
-            chi2: 1.0,
-            gap: 1.0,
-            signal_gaps: Vec::new(),
+        let fit = |fraction: f64, kg: f64| {
+            ended_at(
+                &air,
+                vec![mass],
+                vec![("fluid.air_fraction", fraction), ("actuator.mass", kg)],
+            )
         };
         assert_eq!(
             own_bound("entrained_air", &[fit(0.0995, 5.8)]),
@@ -228,16 +226,7 @@ mod tests {
         // a narrow floor of the effect's own fit is where another term takes over: a
         // payload at its 1 kg floor is no round's choice, but no withdrawal either
         let payload = candidate(Effect::Payload).expect("a candidate");
-        let at_floor = Fit {
-            candidate: payload.clone(),
-            carried: Vec::new(),
-            name: payload.name(),
-            params: Params::default(),
-            values: vec![("actuator.payload_mass", 1.0)],
-            chi2: 1.0,
-            gap: 1.0,
-            signal_gaps: Vec::new(),
-        };
+        let at_floor = ended_at(&payload, Vec::new(), vec![("actuator.payload_mass", 1.0)]);
         assert_eq!(at_floor.on_bound(), Some(("actuator.payload_mass", 1.0)));
         assert_eq!(own_bound("payload", &[at_floor]), None);
 
