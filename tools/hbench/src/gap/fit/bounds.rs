@@ -1,7 +1,7 @@
 //! Whether a fit ended on a bound of its fit, or fitted as its own effect's absence: such
 //! a fit is no model the data support.
 
-use super::coordinate::Coordinate;
+use super::coordinate::{Coordinate, LOG_FLOOR_OF_NONE};
 use super::Fit;
 use crate::gap::effects::Fitted;
 use crate::gap::effects::StepKind;
@@ -140,7 +140,7 @@ fn real_floor(f: &Fitted) -> bool {
     f.bounds.is_none()
         && hbmodel::params::param(f.path).is_some_and(|p| {
             if f.log {
-                p.min >= f.plausible[0] * 1e-3
+                p.min >= f.plausible[0] * LOG_FLOOR_OF_NONE
             } else {
                 p.min != 0.0
             }

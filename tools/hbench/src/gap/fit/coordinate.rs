@@ -4,6 +4,11 @@ use hbmodel::params::param;
 
 use super::Fitted;
 
+/// A log parameter's floor when its registry floor is none (0): this fraction of the
+/// low end of its plausible range, three decades under it, so the log scale has a
+/// positive floor the data can reach as "practically none".
+pub(super) const LOG_FLOOR_OF_NONE: f64 = 1e-3;
+
 /// A bounded parameter seen by the optimiser as an unbounded z: theta = lo + (hi - lo)
 /// s(z), s the logistic, on a log scale for the log parameters.
 pub(super) struct Coordinate {
@@ -18,8 +23,8 @@ impl Coordinate {
         let spec = param(f.path).expect("candidates use registry parameters");
         let [mut lo, hi] = f.bounds.unwrap_or([spec.min, spec.max]);
         if f.log {
-            // a log scale needs a positive floor: three decades under the plausible range
-            lo = lo.max(f.plausible[0] * 1e-3);
+            // a log scale needs a positive floor
+            lo = lo.max(f.plausible[0] * LOG_FLOOR_OF_NONE);
         }
         Coordinate { fitted: *f, lo, hi }
     }
