@@ -9,6 +9,7 @@ use serde_json::json;
 use super::analysis::describe;
 use super::data::{Drive, Experiment, Measured};
 use super::effects::candidate;
+use super::holdout::Validation;
 use super::{Outcome, RecordOutcome};
 use crate::plot::{stacked_log_x, time_traces, Line, Panel};
 
@@ -392,7 +393,9 @@ pub fn write(out: &Path, o: &Outcome, model: Option<&Path>) -> Result<(), String
         let _ = writeln!(
             md,
             "{}Fitted: {}. Gap {:.2} -> {:.2}.",
-            step.validation.as_ref().map_or(String::new(), held_out),
+            step.validation
+                .as_ref()
+                .map_or(String::new(), Validation::describe),
             fitted_values(step),
             step.gap_before,
             step.gap_after
@@ -450,7 +453,13 @@ pub fn write(out: &Path, o: &Outcome, model: Option<&Path>) -> Result<(), String
     if !o.refusals.is_empty() {
         md.push_str("\n## Refused after winning a round\n\n");
         for v in &o.refusals {
-            let _ = writeln!(md, "- `{}`, {}: {}", v.effect, v.why_refused(), held_out(v));
+            let _ = writeln!(
+                md,
+                "- `{}`, {}: {}",
+                v.effect,
+                v.why_refused(),
+                v.describe()
+            );
         }
     }
     if let Some(a) = &o.advice {
@@ -462,75 +471,6 @@ pub fn write(out: &Path, o: &Outcome, model: Option<&Path>) -> Result<(), String
     }
     md.push_str("The fitted parameter file is `fitted_model.toml`.\n");
     std::fs::write(out.join("report.md"), md).map_err(|err| err.to_string())
-}
-
-/// A held-out check in words.
-fn held_out(v: &super::holdout::Validation) -> String {
-    let folds: Vec<String> = v
-        .folds
-        .iter()
-        .map(|f| {
-            format!(
-                "fitted without the {}, its gap went {:.2} -> {:.2}",
-                f.held_out, f.gap_before, f.gap_after
-            )
-        })
-        .collect();
-    let mut text = format!("Held out: {}. ", folds.join("; "));
-    let records: Vec<String> = v
-        .folds
-        .iter()
-        .flat_map(|f| &f.records)
-        .map(|r| {
-            format!(
-                "the {} {:.2} -> {:.2} (ln B {:.1} against it; the rest of that record, \
-                 fitted on, {:.2} -> {:.2})",
-                r.record,
-                r.gap_before,
-                r.gap_after,
-                r.ln_bayes_against,
-                r.fitted_gap_before,
-                r.fitted_gap_after
-            )
-        })
-        .collect();
-    if !records.is_empty() {
-        text.push_str(&format!("Record by record: {}. ", records.join("; ")));
-    }
-    if !v.parts.is_empty() {
-        let each: Vec<String> = v
-            .parts
-            .iter()
-            .map(|p| {
-                let gaps: Vec<String> = p.gaps.iter().map(|g| format!("{g:.2}")).collect();
-                format!(
-                    "`{}` {} (ln B {:.1} for it over that)",
-                    p.effect,
-                    gaps.join(", "),
-                    p.ln_bayes
-                )
-            })
-            .collect();
-        text.push_str(&format!(
-            "Each effect it brings, fitted alone on the same folds: {}. ",
-            each.join("; ")
-        ));
-    }
-    if !v.sensors.is_empty() {
-        let each: Vec<String> = v.sensors.iter().map(|s| s.describe()).collect();
-        text.push_str(&format!(
-            "A delay of every sensor, read on each signal it took further from the data: {}. ",
-            each.join("; ")
-        ));
-        if !v.sensors.iter().all(|s| s.sees()) {
-            text.push_str(
-                "The signals disagree on the delay: the mark of a lag of some sensors alone \
-                 (the pressure transducers' own dynamics read as a delay on steps), which no \
-                 candidate holds. Check those sensors' response. ",
-            );
-        }
-    }
-    text
 }
 
 fn list<'a>(names: impl Iterator<Item = &'a str>) -> String {

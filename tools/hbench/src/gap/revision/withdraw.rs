@@ -180,6 +180,7 @@ mod tests {
                 gap_before: 1.5,
                 gap_after: 1.7,
                 records: Vec::new(),
+                ln_bayes_against: None,
             }],
             sensors: Vec::new(),
             parts: Vec::new(),
