@@ -362,15 +362,25 @@ impl Validation {
             return "a signal it took further from the data sees no delay alone".into();
         }
         if let Some((f, r)) = self.contradicted() {
+            let together = f.ln_bayes_against.unwrap_or(r.ln_bayes_against);
+            // the two ways `Fold::contradiction` refuses, named apart: a fold that is not
+            // clearly for it, or a record the model before already explains
+            let why = if together <= -ADD_LN_BAYES {
+                format!(
+                    "though the fold's held-out data together are for it (ln B {:.1}), the \
+                     model before explains that record within its noise there (gap {:.2})",
+                    -together, r.gap_before
+                )
+            } else {
+                format!(
+                    "which the fold's held-out data together do not outweigh (ln B {together:.1} \
+                     against it)"
+                )
+            };
             return format!(
                 "clearly worse on the {} it was not fitted on (ln B {:.1} against it; the \
-                 rest of that record, fitted on, {:.2} -> {:.2}), which the fold's held-out \
-                 data together do not outweigh (ln B {:.1} against it)",
-                r.record,
-                r.ln_bayes_against,
-                r.fitted_gap_before,
-                r.fitted_gap_after,
-                f.ln_bayes_against.unwrap_or(r.ln_bayes_against)
+                 rest of that record, fitted on, {:.2} -> {:.2}), {why}",
+                r.record, r.ln_bayes_against, r.fitted_gap_before, r.fitted_gap_after,
             );
         }
         match self.unbeaten() {

@@ -360,12 +360,12 @@ fn a_record_explained_within_its_noise_is_not_outweighed() {
     let measured = volume(0.95);
     assert!(!measured.passed());
     assert!(measured.disagreement().is_none());
+    let why = measured.why_refused();
     assert!(
-        measured
-            .why_refused()
-            .starts_with("clearly worse on the even pieces of `chirp`"),
-        "{}",
-        measured.why_refused()
+        why.starts_with("clearly worse on the even pieces of `chirp`")
+            && why.contains("together are for it (ln B 193.8)")
+            && why.contains("within its noise there (gap 0.95)"),
+        "{why}"
     );
     // the second fold's chirp, at its noise too, still refuses when the first's is not
     let loud = volume(3.0);
