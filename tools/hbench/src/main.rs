@@ -205,6 +205,12 @@ enum Command {
         /// written to answer.json); the known model is then section 4.4's
         #[arg(long)]
         form_error: bool,
+        /// Replace one part of the drawn form error, NAME=VALUE as answer.json names it
+        /// (repeatable), e.g. --form-at sensors.pressure_lag=0 or --form-at
+        /// fluid.bulk_modulus=1.0 (a factor): the same case without that part, to measure
+        /// which part of the form error a result turns on
+        #[arg(long, value_parser = gap::hide::parse_form_setting, requires = "form_error")]
+        form_at: Vec<(String, f64)>,
     },
     /// Blind study of the model-gap workflow: for every hidden effect (or pair), experiment
     /// and seed, `hide` data and let `gap` find what is missing without the answer; writes
@@ -388,6 +394,7 @@ fn main() -> ExitCode {
             force,
             simulator,
             form_error,
+            form_at,
         } => gap::hide::main(&gap::hide::Options {
             effects: &effects,
             kind: experiment,
@@ -398,6 +405,7 @@ fn main() -> ExitCode {
             force,
             simulator,
             form_error,
+            form_at: &form_at,
         }),
         Command::Blind {
             effects,

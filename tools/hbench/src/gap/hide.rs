@@ -267,6 +267,19 @@ pub fn hideable(e: Effect) -> bool {
 }
 
 /// `PATH=VALUE` settings of registry parameters, checked against their bounds.
+/// `NAME=VALUE` for `hide --form-at`; the name is checked against the drawn form error
+/// (`FormError::set`), which depends on the simulator.
+pub fn parse_form_setting(s: &str) -> Result<(String, f64), String> {
+    let (name, value) = s
+        .split_once('=')
+        .ok_or(format!("expected NAME=VALUE, not '{s}'"))?;
+    let v: f64 = value
+        .trim()
+        .parse()
+        .map_err(|_| format!("'{value}' is not a number"))?;
+    Ok((name.trim().to_string(), v))
+}
+
 pub fn parse_setting(s: &str) -> Result<(String, f64), String> {
     let (path, value) = s
         .split_once('=')
@@ -298,6 +311,8 @@ pub struct Options<'a> {
     pub simulator: Simulator,
     /// Draw a model-form error (FormError::draw) on top of the simulator's own.
     pub form_error: bool,
+    /// Parts of the drawn form error replaced (`FormError::set`); needs `form_error`.
+    pub form_at: &'a [(String, f64)],
 }
 
 /// `hbench hide`.
@@ -332,11 +347,17 @@ pub fn main(o: &Options) -> Result<(), String> {
         drawn.retain(|(d, _)| *d != spec.path);
         drawn.push((spec.path, *v));
     }
-    let form = if o.form_error {
+    if !o.form_at.is_empty() && !o.form_error {
+        return Err("--form-at changes the drawn form error: give --form-error too".into());
+    }
+    let mut form = if o.form_error {
         FormError::for_seed(o.simulator, seed)
     } else {
         FormError::none()
     };
+    for (name, v) in o.form_at {
+        form.set(o.simulator, name, *v)?;
+    }
     let truth = Truth::new(o.simulator, &known, &hidden, &drawn, &form);
     let sp = SensorParams {
         seed,

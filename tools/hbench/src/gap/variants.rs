@@ -77,6 +77,12 @@ const RUST_ONLY: [&str; 1] = ["sv1.null_leakage"];
 /// transducer of 300-1600 Hz bandwidth; below the 1 kHz sampling's resolution at the low
 /// end, about the 0.5 ms sampling delay of section 4.4.2 at the high end.
 const LAG_RANGE: [f64; 2] = [0.1e-3, 0.5e-3];
+/// What `hide --form-at` accepts for a sensor lag (s): none up to 2 ms, a transducer of
+/// 80 Hz bandwidth, wider than the draw so that a lag's effect can be measured beyond it.
+const SET_LAG_RANGE: [f64; 2] = [0.0, 2e-3];
+/// What `hide --form-at` accepts for a parameter's factor: half to twice the thesis's
+/// value. Beyond that the parameter is no longer "a few percent off" but another bench.
+const SET_FACTOR_RANGE: [f64; 2] = [0.5, 2.0];
 /// Peer only: scale of the Table 2.1 spool-edge geometry (null flow and pressure gain of
 /// a valve of the same type, +-30 %), and bend of the viscous law (+-30 % at low speed).
 const EDGE_SCALE_RANGE: [f64; 2] = [0.7, 1.3];
@@ -147,6 +153,49 @@ impl FormError {
             f.viscous_bend = uniform(rng, VISCOUS_BEND_RANGE);
         }
         f
+    }
+
+    /// Replace one drawn part by `value`, named as answer.json names it: a sensor lag
+    /// (`sensors.lvdt_lag`, `sensors.pressure_lag`, s), the peer's `valve.edge_scale` or
+    /// `friction.viscous_bend`, or a drawn parameter's factor (`PATH` or `PATH (factor)`).
+    /// For `hide --form-at`: which part of a case's form error made a miss is then a
+    /// measurement (the same case with that part changed), not a guess. A part the
+    /// simulator does not have is an error, never a setting silently ignored.
+    pub fn set(&mut self, sim: Simulator, name: &str, value: f64) -> Result<(), String> {
+        let peer = sim == Simulator::Peer;
+        // the part named, where it is kept, and what it may be set to
+        let (slot, range, unit) = match name {
+            "sensors.lvdt_lag" => (&mut self.lvdt_lag, SET_LAG_RANGE, " s"),
+            "sensors.pressure_lag" => (&mut self.pressure_lag, SET_LAG_RANGE, " s"),
+            "valve.edge_scale" if peer => (&mut self.edge_scale, EDGE_SCALE_RANGE, ""),
+            "friction.viscous_bend" if peer => (&mut self.viscous_bend, VISCOUS_BEND_RANGE, ""),
+            _ => {
+                let path = name.trim_end_matches(" (factor)");
+                match self.factors.iter().position(|(p, _)| *p == path) {
+                    Some(k) => (&mut self.factors[k].1, SET_FACTOR_RANGE, " (a factor)"),
+                    None => {
+                        let mut known = vec!["sensors.lvdt_lag", "sensors.pressure_lag"];
+                        if peer {
+                            known.extend(["valve.edge_scale", "friction.viscous_bend"]);
+                        }
+                        known.extend(self.factors.iter().map(|(p, _)| *p));
+                        return Err(format!(
+                            "--form-at {name}: not a part of the {} bench's form error; known: {}",
+                            sim.name(),
+                            known.join(", ")
+                        ));
+                    }
+                }
+            }
+        };
+        if !(value >= range[0] && value <= range[1]) {
+            return Err(format!(
+                "--form-at {name}={value}: outside [{}, {}]{unit}",
+                range[0], range[1]
+            ));
+        }
+        *slot = value;
+        Ok(())
     }
 
     /// The known model with its parameters off by the factors.
@@ -326,6 +375,31 @@ mod tests {
     }
 
     #[test]
+    fn a_part_of_the_form_error_is_replaced_by_name_and_a_part_the_bench_lacks_is_refused() {
+        let drawn = FormError::for_seed(Simulator::Rust, 2);
+        let mut f = drawn.clone();
+        f.set(Simulator::Rust, "sensors.pressure_lag", 0.0).unwrap();
+        f.set(Simulator::Rust, "fluid.bulk_modulus (factor)", 1.0)
+            .unwrap();
+        assert_eq!(f.pressure_lag, 0.0);
+        let factor = |f: &FormError, p: &str| f.factors.iter().find(|x| x.0 == p).unwrap().1;
+        assert_eq!(factor(&f, "fluid.bulk_modulus"), 1.0);
+        // the rest is the case's own draw
+        assert_eq!(f.lvdt_lag, drawn.lvdt_lag);
+        assert_eq!(factor(&f, "actuator.mass"), factor(&drawn, "actuator.mass"));
+        // the Rust bench has no spool-edge scale, the peer no linear null leakage
+        let e = f.set(Simulator::Rust, "valve.edge_scale", 1.1).unwrap_err();
+        assert!(e.contains("not a part of the rust bench"), "{e}");
+        let mut peer = FormError::for_seed(Simulator::Peer, 2);
+        assert!(peer.set(Simulator::Peer, "sv1.null_leakage", 1.0).is_err());
+        peer.set(Simulator::Peer, "valve.edge_scale", 1.1).unwrap();
+        // out of range is refused, never clipped
+        assert!(f.set(Simulator::Rust, "sensors.lvdt_lag", -1e-4).is_err());
+        assert!(f.set(Simulator::Rust, "actuator.mass", 3.0).is_err());
+        assert!(f.set(Simulator::Rust, "actuator.mass", f64::NAN).is_err());
+    }
+
+    #[test]
     fn hide_writes_the_form_error_and_a_known_model_without_the_truths_structure() {
         let out = std::env::temp_dir().join(format!("hbench-hide-test-{}", std::process::id()));
         let _ = std::fs::remove_dir_all(&out);
@@ -340,6 +414,7 @@ mod tests {
                 force: false,
                 simulator,
                 form_error,
+                form_at: &[],
             })
         };
         hide("manifold_inertia", Simulator::Peer, true).unwrap();
