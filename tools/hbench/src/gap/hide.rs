@@ -266,7 +266,6 @@ pub fn hideable(e: Effect) -> bool {
     candidate(e).is_some()
 }
 
-/// `PATH=VALUE` settings of registry parameters, checked against their bounds.
 /// `NAME=VALUE` for `hide --form-at`; the name is checked against the drawn form error
 /// (`FormError::set`), which depends on the simulator.
 pub fn parse_form_setting(s: &str) -> Result<(String, f64), String> {
@@ -280,16 +279,11 @@ pub fn parse_form_setting(s: &str) -> Result<(String, f64), String> {
     Ok((name.trim().to_string(), v))
 }
 
+/// `PATH=VALUE` settings of registry parameters, checked against their bounds.
 pub fn parse_setting(s: &str) -> Result<(String, f64), String> {
-    let (path, value) = s
-        .split_once('=')
-        .ok_or(format!("expected PATH=VALUE, not '{s}'"))?;
-    let spec = hbmodel::params::param(path.trim())
-        .ok_or(format!("'{path}' is not a registry parameter"))?;
-    let v: f64 = value
-        .trim()
-        .parse()
-        .map_err(|_| format!("'{value}' is not a number"))?;
+    let (path, v) = parse_form_setting(s)?;
+    let spec =
+        hbmodel::params::param(&path).ok_or(format!("'{path}' is not a registry parameter"))?;
     if !(v >= spec.min && v <= spec.max) {
         return Err(format!(
             "{path} = {v} outside [{}, {}] {}",
