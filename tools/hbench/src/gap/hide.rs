@@ -26,10 +26,13 @@ use super::variants::{describe, peer_variant, section_4_4, FormError, Simulator}
 pub use super::experiments::Kind;
 use super::experiments::{Design, PERIOD};
 
-/// A plausible magnitude of each parameter the effect's fit adjusts.
+/// A plausible magnitude of each parameter the effect's fit adjusts and `hide` draws
+/// (`Fitted::drawn`). One not drawn takes no number from `rng`, so every case's draws
+/// are what they were before it was fitted.
 pub fn draw(c: &Candidate, rng: &mut Pcg64) -> Vec<(&'static str, f64)> {
     c.fitted
         .iter()
+        .filter(|f| f.drawn)
         .map(|f| {
             let [lo, hi] = f.plausible;
             let u: f64 = rng.random();

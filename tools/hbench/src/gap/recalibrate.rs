@@ -102,6 +102,8 @@ fn within(path: &'static str, bounds: [f64; 2]) -> Fitted {
         log: false,
         either_sign: false,
         bounds: Some(bounds),
+        drawn: true,
+        floor_accepted: false,
     }
 }
 

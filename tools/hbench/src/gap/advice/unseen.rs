@@ -13,8 +13,9 @@ use super::super::fit::Target;
 use super::{assess, recommend, Advice, Scale};
 use crate::gap::evidence::CLEAR_LN_BAYES;
 
-/// `c` switched on in `model` (with what it requires) at the middle of each parameter's
-/// plausible range: geometric for the log-scaled ones.
+/// `c` switched on in `model` (with what it requires) at the middle of each drawn
+/// parameter's plausible range (geometric for the log-scaled ones); the others at the
+/// model's values, as `hide` leaves them.
 fn at_plausible_middle(model: &Params, c: &Candidate) -> Option<Params> {
     let e = c.effect?;
     let mut p = model.clone();
@@ -22,7 +23,7 @@ fn at_plausible_middle(model: &Params, c: &Candidate) -> Option<Params> {
     for &r in e.spec().requires {
         p.effects.set(r, true);
     }
-    for f in &c.fitted {
+    for f in c.fitted.iter().filter(|f| f.drawn) {
         let [lo, hi] = f.plausible;
         let v = if f.log {
             (lo * hi).sqrt()

@@ -202,3 +202,40 @@ fn a_case_lists_the_recalibrated_parameters_by_path() {
         vec!["sv2.rated_flow".to_string(), "sv1.null_leakage".to_string()]
     );
 }
+
+/// A parameter a candidate fits but `hide` does not draw (the dry friction's Stribeck
+/// velocity) takes no number from the case's stream: every case draws what it drew
+/// before that parameter was fitted, so the stored study's benches stay its benches. The
+/// figures are those drawn before it was (the study's files give seed 1's dry friction
+/// as 129.18 N; the pair's delay is what `hide --effect dry_friction --effect
+/// sensor_delay --seed 1` wrote with session 50's binary).
+#[test]
+fn a_parameter_fitted_but_not_drawn_leaves_every_case_as_it_was() {
+    const PAIR_DELAY: f64 = 0.00023113761506402846;
+    use crate::gap::variants::Simulator;
+    let dry = super::Setup::new(Simulator::Peer, true, &[Effect::DryFriction], 1);
+    assert_eq!(dry.drawn.len(), 1, "{:?}", dry.drawn);
+    let (path, coulomb) = dry.drawn[0];
+    assert_eq!(path, "friction.coulomb");
+    assert!((coulomb - 129.18357560837023).abs() < 1e-9, "{coulomb}");
+    // the bench keeps the known law's turn
+    let known = crate::gap::variants::section_4_4()
+        .friction
+        .stribeck_velocity;
+    let bench = super::Setup::new(Simulator::Rust, true, &[Effect::DryFriction], 1);
+    assert_eq!(bench.bench.params.friction.stribeck_velocity, known);
+    // and an effect drawn after it in the same case draws what it drew before
+    let pair = super::Setup::new(
+        Simulator::Rust,
+        true,
+        &[Effect::DryFriction, Effect::SensorDelay],
+        1,
+    );
+    assert_eq!(pair.drawn.len(), 2, "{:?}", pair.drawn);
+    assert_eq!(pair.drawn[0].1, coulomb);
+    assert!(
+        (pair.drawn[1].1 - PAIR_DELAY).abs() < 1e-15,
+        "{:?}",
+        pair.drawn
+    );
+}

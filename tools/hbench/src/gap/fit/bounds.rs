@@ -73,7 +73,8 @@ impl Fit {
             .enumerate()
             .filter_map(|(k, (f, &(path, v)))| {
                 let s = span_position(f, v);
-                let narrow = f.bounds.is_some() && !(ON_BOUND..=1.0 - ON_BOUND).contains(&s);
+                let narrow =
+                    f.bounds.is_some() && (s < ON_BOUND && !f.floor_accepted || s > 1.0 - ON_BOUND);
                 // the added effect's own parameters: at its floor only when that floor
                 // is no absence, at its ceiling always
                 let own_added = k < own && adds;

@@ -206,6 +206,8 @@ mod tests {
             log: false,
             either_sign: false,
             bounds: Some([4.9, 6.7]),
+            drawn: true,
+            floor_accepted: false,
         };
         let fit = |fraction: f64, kg: f64| {
             ended_at(
