@@ -174,8 +174,9 @@ pub fn candidate(e: Effect) -> Option<Candidate> {
         Effect::DryFriction => (
             vec![
                 lin("friction.coulomb", [20.0, 150.0]),
-                // how sharply the force turns at a reversal, from a contact's tenth of a
-                // millimetre per second to the thesis's smooth 45 mm/s: fitted, not drawn
+                // how sharply the force turns at a reversal: plausible from a contact's
+                // tenth of a millimetre per second to the thesis's smooth 45 mm/s, fitted
+                // from SHARPEST_TURN up, never drawn
                 Fitted {
                     bounds: Some([SHARPEST_TURN, param_max("friction.stribeck_velocity")]),
                     drawn: false,

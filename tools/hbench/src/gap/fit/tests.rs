@@ -164,8 +164,8 @@ fn a_fit_that_ended_on_a_bound_is_told() {
     let at = |f_c: f64| at_turn(f_c, 1e-3);
     assert_eq!(at(0.0).on_bound(), Some(("friction.coulomb", 0.0)));
     assert_eq!(at(27.6).on_bound(), None);
-    // a turn at the sharpest the fit tells apart is a dry contact the data support; one
-    // at the registry's smoothest is a viscous law below 0.1 m/s, which they asked for
+    // a turn on the fit's floor (a cost limit) is a dry contact the data support; one at
+    // the registry's smoothest is a viscous law below 0.1 m/s, which they asked for
     assert_eq!(at_turn(82.6, sharpest).on_bound(), None);
     assert_eq!(
         at_turn(82.6, smoothest).on_bound(),
