@@ -343,7 +343,7 @@ pub fn case_advised(
             hidden,
             seed,
             settings,
-            path,
+            (path, report_to.map(|d| d.join("advised")).as_deref()),
         );
     }
     Ok(case)

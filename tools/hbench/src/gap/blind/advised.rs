@@ -2,6 +2,8 @@
 //! again under the design the workflow recommended, that record analysed afresh and the
 //! advice's question decided on it.
 
+use std::path::Path;
+
 use hbmodel::effects::Effect;
 use hbmodel::sensors::SensorParams;
 use hbmodel::Params;
@@ -24,13 +26,17 @@ pub struct Followed<'a> {
 impl Followed<'_> {
     /// The bench recorded under the design (new noise); the record analysed afresh, as
     /// a user without the question would, and the advice's question decided on it.
+    /// With `keep_in`, the record (measured.csv, experiment.toml) and the afresh
+    /// analysis's report are kept there: where the afresh analysis and the decision
+    /// disagree (the Rust moves' hidden air, seed 2: nothing named afresh, the air
+    /// decided by ln B 480, session 53), `hbench gap` can be run on that record again.
     pub fn record(
         &self,
         case: &mut Case,
         s: &Setup,
         base: &Params,
         hidden: &[Effect],
-        path: &str,
+        (path, keep_in): (&str, Option<&Path>),
     ) -> Result<(), String> {
         let sp = SensorParams {
             seed: self.seed + ADVISED_SEED,
@@ -58,6 +64,9 @@ impl Followed<'_> {
             self.settings.within,
             false,
         )?;
+        if let Some(dir) = keep_in {
+            keep(dir, &record, &again)?;
+        }
         // written only once every part has succeeded: a case whose advice failed is
         // counted with the failures, never also with the records analysed
         case.named_after_advice = Some(named(&again, base, hidden));
@@ -71,6 +80,19 @@ impl Followed<'_> {
     }
 }
 
+/// Write the advised record as `hbench hide` writes one, and its afresh analysis's report
+/// as `hbench gap` does, in `dir` (a study's own directory, written afresh each run).
+fn keep(dir: &Path, record: &Record, outcome: &super::super::Outcome) -> Result<(), String> {
+    std::fs::create_dir_all(dir).map_err(|e| format!("cannot create {}: {e}", dir.display()))?;
+    let write = |name: &str, text: String| {
+        let f = dir.join(name);
+        std::fs::write(&f, text).map_err(|e| format!("cannot write {}: {e}", f.display()))
+    };
+    write("measured.csv", record.measured.to_csv())?;
+    write("experiment.toml", record.experiment.to_toml())?;
+    super::super::report::write(dir, outcome, None)
+}
+
 /// Offset of the advised record's noise seed from the case's: a new record, new noise.
 const ADVISED_SEED: u64 = 2000;
 
@@ -78,7 +100,8 @@ const ADVISED_SEED: u64 = 2000;
 /// the recommended design and analyse it (`Followed::record`). A design is recommended
 /// only when it separates the question; the best of the designs when none does is no
 /// recommendation, recording it tests nothing, and the case keeps the advice's words in
-/// `unadvised`. A bench that cannot record the design (the peer's solver stopping)
+/// `unadvised`. With `keep_in` the advised record and its analysis are kept there
+/// (`Followed::record`). A bench that cannot record the design (the peer's solver stopping)
 /// leaves the case as its first record made it, the failure said and counted apart.
 pub fn follow(
     case: &mut Case,
@@ -87,7 +110,7 @@ pub fn follow(
     hidden: &[Effect],
     seed: u64,
     settings: Settings,
-    path: &str,
+    (path, keep_in): (&str, Option<&Path>),
 ) {
     let recommended = advice.filter(|a| a.separates).and_then(|a| {
         let best = a.best.as_ref()?;
@@ -106,7 +129,7 @@ pub fn follow(
         seed,
         settings,
     };
-    if let Err(e) = followed.record(case, s, &s.known, hidden, path) {
+    if let Err(e) = followed.record(case, s, &s.known, hidden, (path, keep_in)) {
         eprintln!("{}: the advised record failed: {e}", design.label());
         case.advice_failed = Some(e);
     }

@@ -54,6 +54,16 @@ impl Fit {
     /// bench (seed 1, form error, manifold volume hidden at scale 1.44) added
     /// `entrained_air` at 0.100, the registry's 10 % ceiling, after the volume itself
     /// (fitted 1.447) was refused (measured, session 46).
+    ///
+    /// So is a parameter of the model re-fitted beside a candidate (or as its own
+    /// recalibration) within its registry bounds that ended at their ceiling: the
+    /// candidate needed the model's law stretched past what it can be. On the peer's
+    /// chirp (seed 1, form error, dry friction hidden at 129 N), the run's end question
+    /// took the valve asymmetry over the dry friction by ln B 161 with the viscous
+    /// friction beside it at 5000 N s/m, the registry's ceiling and 12.5 times the
+    /// thesis's 400 (the dry friction's fit had it at 0.15). With this rule the question
+    /// says so; the run still names the asymmetry first, as its step 3 was taken on
+    /// its own merit (measured, session 54).
     pub fn on_bound(&self) -> Option<(&'static str, f64)> {
         self.bounded().into_iter().next()
     }
@@ -81,7 +91,9 @@ impl Fit {
                 let absent = own_added
                     && s < ON_BOUND
                     && (switches_others || k == 0 && self.sized_from_none(f) || real_floor(f));
-                let beyond = own_added && s > 1.0 - ON_BOUND;
+                // at a physical ceiling: the added effect's own parameter, or a
+                // parameter of the model re-fitted beside it
+                let beyond = (own_added || f.bounds.is_none()) && s > 1.0 - ON_BOUND;
                 (narrow || absent || beyond).then_some((path, v))
             })
             .collect()

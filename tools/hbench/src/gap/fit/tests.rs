@@ -177,6 +177,37 @@ fn a_fit_that_ended_on_a_bound_is_told() {
     re.kind = crate::gap::effects::StepKind::Recalibrate;
     let at = |f_c: f64| ended_at(&re, vec![], vec![("friction.coulomb", f_c)]);
     assert_eq!(at(0.0).on_bound(), None);
+    // but a parameter of the model re-fitted beside a candidate, within its registry
+    // bounds, at their ceiling is: the candidate stretched the model's law past what it
+    // can be (the peer chirp's asymmetry with the viscous friction at 5000 N s/m)
+    let mut viscous = candidate(Effect::ViscousFriction).expect("a candidate");
+    viscous.kind = crate::gap::effects::StepKind::Recalibrate;
+    let asymmetry = candidate(Effect::ValveAsymmetry).expect("a candidate");
+    let beside = |b: f64| {
+        // the asymmetry's own parameters inside their bounds
+        let mut values: Vec<(&'static str, f64)> = asymmetry
+            .fitted
+            .iter()
+            .map(|f| (f.path, 0.5 * (f.plausible[0] + f.plausible[1])))
+            .collect();
+        values.push(("actuator.viscous_friction", b));
+        ended_at(&asymmetry, viscous.fitted.clone(), values)
+    };
+    assert_eq!(beside(400.0).on_bound(), None);
+    assert_eq!(
+        beside(5000.0).on_bound(),
+        Some(("actuator.viscous_friction", 5000.0))
+    );
+    // its floor of none (no viscous friction) stays a fit the data chose
+    assert_eq!(beside(0.0).on_bound(), None);
+    // and so for the recalibration's own fit
+    let at = |b: f64| ended_at(&viscous, vec![], vec![("actuator.viscous_friction", b)]);
+    assert_eq!(at(0.0).on_bound(), None);
+    assert_eq!(at(1200.0).on_bound(), None);
+    assert_eq!(
+        at(5000.0).on_bound(),
+        Some(("actuator.viscous_friction", 5000.0))
+    );
 }
 
 /// The spread reports the value the fit ended at, even nearer a bound than the clamp of
