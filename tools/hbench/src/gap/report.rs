@@ -384,7 +384,7 @@ pub fn write(out: &Path, o: &Outcome, model: Option<&Path>) -> Result<(), String
             n / step.effective_samples.max(1.0)
         );
         if let Some(p) = &step.preference {
-            let _ = writeln!(md, "{}\n", preference_line(p, &step.name));
+            let _ = writeln!(md, "{}\n", p.line(&step.name));
         }
         let _ = writeln!(
             md,
@@ -516,35 +516,9 @@ fn fitted_values(step: &super::Step) -> String {
 /// steps are correlated -0.81 (measured, test in `fit`).
 const STRONG_CORRELATION: f64 = 0.8;
 
-/// The step's evidence against its closest rival. The step taken is not always the best
-/// scorer: a recalibration within ln B 3 of an added effect is taken first
-/// (`selection::choose`), and a best scorer the held-out check refused is passed over.
-/// On the Rust moves seed 2 with the air hidden (session 53) the report said "Against the
-/// runner-up `fluid.bulk_modulus`" under the step that took the bulk modulus itself.
-fn preference_line(p: &super::evidence::Preference, taken: &str) -> String {
-    let scores = format!("ln Bayes factor {:.1}, {}", p.ln_bayes_factor, p.verdict);
-    if p.best == taken {
-        format!("Against the runner-up `{}`: {scores}.", p.runner_up)
-    } else if p.runner_up == taken {
-        format!(
-            "`{}` scored above this step ({scores}); it was not taken: a recalibration the \
-             data cannot tell from an added effect goes first (parameters a few percent off \
-             are no missing physics), and an effect the held-out check refuses is passed over.",
-            p.best
-        )
-    } else {
-        format!(
-            "The two best scorers, `{}` and `{}` ({scores}), were not taken (refused by the \
-             held-out check or no longer eligible).",
-            p.best, p.runner_up
-        )
-    }
-}
-
 #[cfg(test)]
 mod tests {
-    use super::{preference_line, start_note, unwrap_phase};
-    use crate::gap::evidence::preference;
+    use super::{start_note, unwrap_phase};
 
     /// The report says where the run started as it did: a file, the built-in parameters
     /// with every effect off, or a model handed over in code with effects on (a blind
@@ -559,36 +533,6 @@ mod tests {
         assert!(note.contains("effects listed on"), "{note}");
         let file = std::path::Path::new("bench.toml");
         assert!(start_note(Some(file), &known).contains("`bench.toml`"));
-    }
-
-    /// The line under a step names the rival it was judged against, never the step
-    /// itself: the air and the bulk modulus tied (scores 460.3 and 459.9, session 53)
-    /// and the recalibration was taken.
-    #[test]
-    fn a_step_is_never_its_own_runner_up() {
-        let scores = |v: &[(&str, f64)]| -> Vec<(String, f64)> {
-            v.iter().map(|(n, s)| (n.to_string(), *s)).collect()
-        };
-        let tied = preference(&scores(&[
-            ("fluid.bulk_modulus", 459.9),
-            ("entrained_air", 460.3),
-            ("actuator.mass", 284.0),
-        ]))
-        .unwrap();
-        let line = preference_line(&tied, "fluid.bulk_modulus");
-        assert!(
-            line.starts_with("`entrained_air` scored above this step"),
-            "{line}"
-        );
-        assert!(line.contains("cannot tell"), "{line}");
-        let line = preference_line(&tied, "entrained_air");
-        assert!(
-            line.starts_with("Against the runner-up `fluid.bulk_modulus`"),
-            "{line}"
-        );
-        let line = preference_line(&tied, "actuator.mass");
-        assert!(line.contains("were not taken"), "{line}");
-        assert!(!line.contains("`actuator.mass`"), "{line}");
     }
 
     #[test]

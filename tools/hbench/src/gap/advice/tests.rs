@@ -500,5 +500,8 @@ fn low_supply_sets_air_apart_from_the_bulk_modulus() {
     };
     let (at_210, at_50) = (ratio(&thesis), ratio(&low));
     eprintln!("air against the softer oil: {at_210:.3} at 210 bar, {at_50:.3} at 50 bar");
-    assert!(at_50 > 5.0 * at_210, "{at_210:.3} at 210 bar, {at_50:.3} at 50 bar");
+    assert!(
+        at_50 > 5.0 * at_210,
+        "{at_210:.3} at 210 bar, {at_50:.3} at 50 bar"
+    );
 }

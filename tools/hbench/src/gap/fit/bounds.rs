@@ -73,6 +73,24 @@ impl Fit {
     /// question is held (`revision::pinned_by_all`), also when a candidate's own
     /// parameter reached a bound before it in this list.
     pub fn bounded(&self) -> Vec<(&'static str, f64)> {
+        self.hits()
+            .into_iter()
+            .map(|(path, v, _)| (path, v))
+            .collect()
+    }
+
+    /// Its first bound (`on_bound`) is a parameter of the model re-fitted beside it that
+    /// ended at the ceiling of its registry (physical) bounds: what fitted is the model's
+    /// law stretched past what it can be, and past that bound no fit is a model of the
+    /// bench (`revision::bounds::outfitted` does not let such a fit stand in a winner's
+    /// way).
+    pub fn stretches_model(&self) -> bool {
+        self.hits().first().is_some_and(|h| h.2)
+    }
+
+    /// `bounded`, each with whether it is a re-fitted model parameter at its physical
+    /// ceiling (`stretches_model`).
+    fn hits(&self) -> Vec<(&'static str, f64, bool)> {
         let (adds, switches_others) = (self.adds(), self.switches_others());
         let own = self.candidate.fitted.len();
         self.candidate
@@ -94,7 +112,8 @@ impl Fit {
                 // at a physical ceiling: the added effect's own parameter, or a
                 // parameter of the model re-fitted beside it
                 let beyond = (own_added || f.bounds.is_none()) && s > 1.0 - ON_BOUND;
-                (narrow || absent || beyond).then_some((path, v))
+                let stretched = beyond && !own_added;
+                (narrow || absent || beyond).then_some((path, v, stretched))
             })
             .collect()
     }

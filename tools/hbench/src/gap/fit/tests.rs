@@ -208,6 +208,25 @@ fn a_fit_that_ended_on_a_bound_is_told() {
         at(5000.0).on_bound(),
         Some(("actuator.viscous_friction", 5000.0))
     );
+    // both stretch the model past its physical range, which an added effect's own
+    // ceiling does not (it is a law the data asked too much of, not the model)
+    assert!(beside(5000.0).stretches_model() && at(5000.0).stretches_model());
+    assert!(!beside(400.0).stretches_model());
+    let mut own: Vec<(&'static str, f64)> = asymmetry
+        .fitted
+        .iter()
+        .map(|f| (f.path, f.plausible[1]))
+        .collect();
+    own[0].1 = hbmodel::params::param(own[0].0)
+        .expect("in the registry")
+        .max;
+    own.push(("actuator.viscous_friction", 400.0));
+    let own = ended_at(&asymmetry, viscous.fitted.clone(), own);
+    assert!(
+        own.on_bound().is_some() && !own.stretches_model(),
+        "{:?}",
+        own.values
+    );
 }
 
 /// The spread reports the value the fit ended at, even nearer a bound than the clamp of
