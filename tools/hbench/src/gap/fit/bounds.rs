@@ -62,8 +62,8 @@ impl Fit {
     /// took the valve asymmetry over the dry friction by ln B 161 with the viscous
     /// friction beside it at 5000 N s/m, the registry's ceiling and 12.5 times the
     /// thesis's 400 (the dry friction's fit had it at 0.15). With this rule the question
-    /// says so; the run still names the asymmetry first, as its step 3 was taken on
-    /// its own merit (measured, session 54).
+    /// says so, and since such a fit does not block the winner (`stretches_model`) the run
+    /// continues from the dry friction and names it first (measured, session 54).
     pub fn on_bound(&self) -> Option<(&'static str, f64)> {
         self.bounded().into_iter().next()
     }
