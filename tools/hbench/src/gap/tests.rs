@@ -282,7 +282,13 @@ fn a_candidate_pays_for_what_it_adds_and_an_effect_must_be_clear() {
         ("friction.coulomb", 55.0),
         ("friction.stribeck_velocity", 1e-4),
     ];
-    values.extend(carried.iter().map(|f| (f.path, 1.0)));
+    // the carried parameters at the known model's values, inside their registry bounds
+    // (a carried parameter at its physical ceiling is a fit on a bound, `Fit::bounded`)
+    let known = hbmodel::Params::default();
+    values.extend(carried.iter().map(|f| {
+        let p = hbmodel::params::param(f.path).expect("in the registry");
+        (f.path, p.get(&known))
+    }));
     let n = 1950.0;
     let (before, after, effective): (f64, f64, f64) = (3.83, 3.74, 292.0);
     let fit = Fit {
