@@ -66,10 +66,13 @@ const STEP_TIMES: [f64; 2] = [0.05, 0.35];
 const MOVES: [(f64, f64); 2] = [(0.1, 0.2), (0.6, 0.2)];
 /// The DS1104's 1 kHz sampling (line 5711).
 pub const PERIOD: f64 = 1e-3;
-/// The pump's supply (Table 1.1) and the return line's pressure, Pa: every standard
-/// design runs at them, so `hide`'s records are what they were.
-const SUPPLY: f64 = 210e5;
-const TANK: f64 = 2e5;
+/// The pump's supply (Table 1.1) and the return line's pressure (Pa) as the model's
+/// parameters hold them: every standard design runs at them, so `hide`'s records are
+/// what they were.
+fn thesis_pressures() -> (f64, f64) {
+    let p = hbmodel::Params::default();
+    (p.supply_pressure, p.tank_pressure)
+}
 
 /// A reference (m) or command (V) as a function of time (s).
 type Waveform = Box<dyn Fn(f64) -> f64>;
@@ -100,7 +103,7 @@ impl Design {
             amplitude,
             duration,
             mode: Mode::ThreeWay.number(),
-            supply: SUPPLY,
+            supply: thesis_pressures().0,
         }
     }
 
@@ -111,7 +114,7 @@ impl Design {
             Kind::Chirp => format!("{:.2} V", self.amplitude),
             _ => format!("+-{:.1} mm", self.amplitude * 1e3),
         };
-        let supply = if self.supply == SUPPLY {
+        let supply = if self.supply == thesis_pressures().0 {
             String::new()
         } else {
             format!(", {:.0} bar supply", self.supply / 1e5)
@@ -147,9 +150,10 @@ impl Design {
                 self.label()
             ));
         }
-        if !(supply.is_finite() && supply > TANK) {
+        let tank = thesis_pressures().1;
+        if !(supply.is_finite() && supply > tank) {
             return Err(format!(
-                "design {}: the supply must lie above the tank's {TANK} Pa",
+                "design {}: the supply must lie above the tank's {tank} Pa",
                 self.label()
             ));
         }
@@ -157,7 +161,7 @@ impl Design {
         let closed = |y0: f64| Experiment {
             mode,
             supply_pressure: supply,
-            tank_pressure: TANK,
+            tank_pressure: tank,
             initial_position: y0,
             drive: Drive::Proportional {
                 kp: KP_SECTION_4_4,
@@ -222,8 +226,10 @@ const LARGE_CHIRP_COMMAND: f64 = 1.0;
 /// Rust moves seed 2 case, session 53) the effective modulus is 0.35 % below the oil's
 /// at 105 bar (half the thesis's supply), a tenth of that case's 3.3 % form error in the
 /// modulus, and the two tied on every record at 210 bar; at 50 bar supply (chambers near
-/// 26 bar) it is 5.8 % below. 50 bar still drives +-10 mm steps: the valves pass
-/// sqrt(50/210) = 0.49 of their flow, and the step's 20 mm move takes about twice as long.
+/// 26 bar) it is 5.5 % below. 50 bar lies inside the registry's 10-350 bar supply, the
+/// valves pass sqrt(50/210) = 0.49 of their flow at a given opening (the orifice law,
+/// (II.2)), and section 4.4's model keeps its chambers in the oil's range on these steps
+/// (`a_design_under_which_a_leading_model_cavitates_is_not_recommended`).
 const LOW_SUPPLY: f64 = 50e5;
 
 /// The designs `advice` compares: each kind's standard design, and variants of amplitude,
