@@ -4,7 +4,7 @@
 
 use std::collections::BTreeMap;
 use std::fmt::Write as _;
-use std::path::Path;
+use std::path::{Path, PathBuf};
 
 use hbmodel::{Mode, Params};
 use serde::{Deserialize, Serialize};
@@ -267,6 +267,61 @@ pub fn load_measured(path: &Path, e: &Experiment) -> Result<Measured, String> {
         ));
     }
     Ok(Measured { time, columns })
+}
+
+/// One record handed to the workflow: how the bench was driven and what it recorded.
+pub struct Record {
+    /// What the reports call it (the data file's stem).
+    pub name: String,
+    pub experiment: Experiment,
+    pub measured: Measured,
+}
+
+/// The records of a command line: `--data` and `--experiment` paired in order, named by
+/// the data file's stem; when two stems are equal (every `hbench hide` writes
+/// `measured.csv`), by the folder holding the file, and by position when those are equal
+/// too.
+pub fn load_records(data: &[PathBuf], experiments: &[PathBuf]) -> Result<Vec<Record>, String> {
+    if data.is_empty() || data.len() != experiments.len() {
+        return Err(format!(
+            "{} --data and {} --experiment: give one experiment file per data file, in the same order",
+            data.len(),
+            experiments.len()
+        ));
+    }
+    let stem = |p: &Path| {
+        p.file_stem()
+            .map_or("record".into(), |s| s.to_string_lossy().into_owned())
+    };
+    let folder = |p: &Path| {
+        p.canonicalize()
+            .ok()
+            .and_then(|c| {
+                c.parent()?
+                    .file_name()
+                    .map(|f| f.to_string_lossy().into_owned())
+            })
+            .unwrap_or_else(|| stem(p))
+    };
+    let unique = |name: &dyn Fn(&Path) -> String| {
+        let names: Vec<String> = data.iter().map(|d| name(d)).collect();
+        let distinct: std::collections::BTreeSet<&String> = names.iter().collect();
+        (distinct.len() == names.len()).then_some(names)
+    };
+    let names = unique(&stem)
+        .or_else(|| unique(&folder))
+        .unwrap_or_else(|| (1..=data.len()).map(|k| format!("record{k}")).collect());
+    let mut records = Vec::with_capacity(data.len());
+    for ((d, x), name) in data.iter().zip(experiments).zip(names) {
+        let experiment = load_experiment(x)?;
+        let measured = load_measured(d, &experiment)?;
+        records.push(Record {
+            name,
+            experiment,
+            measured,
+        });
+    }
+    Ok(records)
 }
 
 #[cfg(test)]

@@ -14,6 +14,7 @@
 pub mod advice;
 pub mod analysis;
 pub mod blind;
+pub mod budget;
 pub mod common_delay;
 pub mod data;
 pub mod decision;
@@ -44,7 +45,8 @@ use hbmodel::Params;
 use serde::Serialize;
 
 use analysis::{localise, noise, quantum, Localisation};
-use data::{load_experiment, load_measured, Experiment, Measured, COMPARED};
+pub use data::{load_records, Record};
+use data::{Experiment, Measured, COMPARED};
 use drive::{simulate, Traces};
 use fit::{Fit, Target};
 
@@ -181,14 +183,6 @@ fn effective_samples(target: &Target, model: &Params) -> (f64, f64) {
     })
 }
 
-/// One record handed to the workflow: how the bench was driven and what it recorded.
-pub struct Record {
-    /// What the reports call it (the data file's stem).
-    pub name: String,
-    pub experiment: Experiment,
-    pub measured: Measured,
-}
-
 /// What the workflow found on one record: its gaps and where the model disagreed with it,
 /// before and after.
 pub struct RecordOutcome {
@@ -227,6 +221,8 @@ pub struct Outcome {
     /// A contested step asked again with the run's later recalibrations, and whether the
     /// run was continued from its answer.
     pub revision: Option<revision::Revision>,
+    /// Where the run spent its time, and what its budget left out.
+    pub timing: budget::Timing,
 }
 
 /// Relative tolerance of every simulation the workflow compares with a record (`hbench
@@ -296,6 +292,9 @@ pub struct Settings {
     /// The search stops once this many effects are in ([`MAX_STEPS`]): fewer bound
     /// the cost when only the first answers are wanted.
     pub max_effects: usize,
+    /// Wall seconds the run is held to (`budget`): no phase is started that the time
+    /// left cannot hold. None: every phase runs.
+    pub budget: Option<f64>,
 }
 
 impl Default for Settings {
@@ -306,6 +305,7 @@ impl Default for Settings {
             advise: true,
             rtol: RTOL,
             max_effects: MAX_STEPS,
+            budget: None,
         }
     }
 }
@@ -337,12 +337,14 @@ pub fn run_with(start: &Params, records: &[Record], settings: Settings) -> Resul
         rtol,
         ..
     } = settings;
+    let clock = budget::Clock::new(settings.budget);
     let start = &at_rtol(start, rtol);
     let target = target_of(records)?;
-    let initial_gap = target.gap(start);
+    let initial_gap = clock.time(budget::FIRST, || target.gap(start));
     let names: Vec<String> = records.iter().map(|r| r.name.clone()).collect();
     let mut search = search::Search::new(&target, &names, start, within, progress);
     search.max_effects = settings.max_effects;
+    search.clock = Some(&clock);
     search.run();
     // a step the record could not decide, asked again with what the run learned later
     let revision = revision::reask(&search, within, progress);
@@ -361,28 +363,27 @@ pub fn run_with(start: &Params, records: &[Record], settings: Settings) -> Resul
         verdict,
         ..
     } = search;
-    let mut outcomes = Vec::with_capacity(records.len());
-    for (r, part) in records.iter().zip(&target.records) {
-        outcomes.push(describe_record(r, part, start, &model)?);
-    }
     // a new record would be read at the sensors' noise the first record shows
-    let advice = settings
-        .advise
+    let advice = (settings.advise && clock.allows("advice", budget::advice_wall(&clock, &target)))
         .then(|| {
-            let noise = &target.records[0].noise;
-            let recorded: Vec<experiments::Design> = records
-                .iter()
-                .filter_map(|r| experiments::design_of(&r.experiment, &r.measured))
-                .collect();
-            advice::after(&model, &steps, gap, &rounds, noise, &recorded, progress).or_else(|| {
-                // explained within the noise: what could the record not have shown?
-                (gap <= NOISE_FLOOR_GAP)
-                    .then(|| {
-                        let tau = rounds.last().map_or(1.0, |r| r.tau);
-                        let scale = advice::Scale::new(tau, gap);
-                        advice::unseen::check(&model, &target, noise, scale, progress)
-                    })
-                    .flatten()
+            clock.time("advice", || {
+                let noise = &target.records[0].noise;
+                let recorded: Vec<experiments::Design> = records
+                    .iter()
+                    .filter_map(|r| experiments::design_of(&r.experiment, &r.measured))
+                    .collect();
+                advice::after(&model, &steps, gap, &rounds, noise, &recorded, progress).or_else(
+                    || {
+                        // explained within the noise: what could the record not have shown?
+                        (gap <= NOISE_FLOOR_GAP)
+                            .then(|| {
+                                let tau = rounds.last().map_or(1.0, |r| r.tau);
+                                let scale = advice::Scale::new(tau, gap);
+                                advice::unseen::check(&model, &target, noise, scale, progress)
+                            })
+                            .flatten()
+                    },
+                )
             })
         })
         .flatten()
@@ -390,6 +391,13 @@ pub fn run_with(start: &Params, records: &[Record], settings: Settings) -> Resul
             a.recalibrate = decision::open(&a.from, within, &recalibrated, &a.between);
             a
         });
+    let outcomes = clock.time("records", || {
+        records
+            .iter()
+            .zip(&target.records)
+            .map(|(r, part)| describe_record(r, part, start, &model))
+            .collect::<Result<Vec<_>, String>>()
+    })?;
     Ok(Outcome {
         steps,
         initial_gap,
@@ -404,6 +412,7 @@ pub fn run_with(start: &Params, records: &[Record], settings: Settings) -> Resul
         advice,
         refusals,
         revision: revision.map(|r| r.report),
+        timing: clock.timing(),
     })
 }
 
@@ -434,53 +443,6 @@ fn describe_record(
     })
 }
 
-/// The records of a command line: `--data` and `--experiment` paired in order, named by
-/// the data file's stem; when two stems are equal (every `hbench hide` writes
-/// `measured.csv`), by the folder holding the file, and by position when those are equal
-/// too.
-pub fn load_records(data: &[PathBuf], experiments: &[PathBuf]) -> Result<Vec<Record>, String> {
-    if data.is_empty() || data.len() != experiments.len() {
-        return Err(format!(
-            "{} --data and {} --experiment: give one experiment file per data file, in the same order",
-            data.len(),
-            experiments.len()
-        ));
-    }
-    let stem = |p: &Path| {
-        p.file_stem()
-            .map_or("record".into(), |s| s.to_string_lossy().into_owned())
-    };
-    let folder = |p: &Path| {
-        p.canonicalize()
-            .ok()
-            .and_then(|c| {
-                c.parent()?
-                    .file_name()
-                    .map(|f| f.to_string_lossy().into_owned())
-            })
-            .unwrap_or_else(|| stem(p))
-    };
-    let unique = |name: &dyn Fn(&Path) -> String| {
-        let names: Vec<String> = data.iter().map(|d| name(d)).collect();
-        let distinct: std::collections::BTreeSet<&String> = names.iter().collect();
-        (distinct.len() == names.len()).then_some(names)
-    };
-    let names = unique(&stem)
-        .or_else(|| unique(&folder))
-        .unwrap_or_else(|| (1..=data.len()).map(|k| format!("record{k}")).collect());
-    let mut records = Vec::with_capacity(data.len());
-    for ((d, x), name) in data.iter().zip(experiments).zip(names) {
-        let experiment = load_experiment(x)?;
-        let measured = load_measured(d, &experiment)?;
-        records.push(Record {
-            name,
-            experiment,
-            measured,
-        });
-    }
-    Ok(records)
-}
-
 /// `hbench gap`: `settings` carries the recalibrations' reach (`within`) and the
 /// simulations' tolerance (`rtol`); a terminal shows the progress bars.
 pub fn main(
@@ -498,6 +460,7 @@ pub fn main(
         ..
     } = settings;
     check_rtol(rtol)?;
+    budget::check(settings.budget)?;
     if !(0.0..1.0).contains(&recalibrate_within) {
         return Err(format!(
             "--recalibrate-within {recalibrate_within}: a fraction in [0, 1) is expected"

@@ -286,6 +286,7 @@ pub fn write(out: &Path, o: &Outcome, model: Option<&Path>) -> Result<(), String
         "advice": o.advice,
         "refused_on_held_out_data": o.refusals,
         "revision": o.revision,
+        "timing": o.timing,
         "start_model": model.map(|m| m.display().to_string()),
     });
     // a single record keeps the fields of one-record reports at the top level
@@ -461,6 +462,8 @@ pub fn write(out: &Path, o: &Outcome, model: Option<&Path>) -> Result<(), String
     if let Some(a) = &o.advice {
         md.push_str(&super::advice::markdown(a));
     }
+    md.push('\n');
+    md.push_str(&super::budget::markdown(&o.timing));
     md.push_str("\n## Figures\n\n");
     for f in &figures {
         let _ = writeln!(md, "![{f}]({f})\n");

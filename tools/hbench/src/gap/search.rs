@@ -5,6 +5,7 @@
 
 use hbmodel::Params;
 
+use super::budget::Clock;
 use super::effects::{Fitted, StepKind};
 use super::fit::{self, Fit, Target};
 use super::holdout::{self, Validation};
@@ -12,6 +13,11 @@ use super::{
     advice, effective_samples, evidence, json_values, recalibrate, selection, signals, Scored,
     Step, MAX_STEPS, MIN_IMPROVEMENT, NOISE_FLOOR_GAP,
 };
+
+/// The clock's name of the search's rounds.
+pub const ROUND: &str = "round";
+/// The clock's name of an end question's continued search's rounds.
+pub const CONTINUED: &str = "end question's round";
 
 /// How far each list had grown when a round started: what taking the search back to
 /// that round keeps.
@@ -52,6 +58,13 @@ pub struct Search<'t> {
     /// The search stops once this many effects are in (MAX_STEPS unless a user asks
     /// for fewer, `Settings::max_effects`).
     pub max_effects: usize,
+    /// The run's clock and budget (`budget`): each round is timed, and none is started
+    /// that the time left cannot hold.
+    pub clock: Option<&'t Clock>,
+    /// What the clock calls this search's rounds: [`ROUND`], each timed as a phase, or
+    /// the end question's continued search's ([`CONTINUED`], `revision`), held to the
+    /// budget but timed within the question's phase.
+    pub phase: &'static str,
     marks: Vec<Mark>,
 }
 
@@ -82,6 +95,8 @@ impl<'t> Search<'t> {
             effective: target.len() as f64,
             verdict: String::new(),
             max_effects: MAX_STEPS,
+            clock: None,
+            phase: ROUND,
             marks: Vec::new(),
         }
     }
@@ -99,7 +114,8 @@ impl<'t> Search<'t> {
             .count()
     }
 
-    /// Rounds until no candidate is worth adding or `max_effects` effects are in.
+    /// Rounds until no candidate is worth adding, `max_effects` effects are in, or the
+    /// next round would not fit the time budget (`budget`).
     pub fn run(&mut self) {
         self.verdict = loop {
             if self.added() >= self.max_effects {
@@ -108,7 +124,29 @@ impl<'t> Search<'t> {
                     self.max_effects, self.gap
                 );
             }
-            if let Some(verdict) = self.round() {
+            let name = format!("{} {}", self.phase, self.rounds.len() + 1);
+            let Some(clock) = self.clock else {
+                if let Some(verdict) = self.round() {
+                    break verdict;
+                }
+                continue;
+            };
+            // the longest round so far is what the next one is expected to cost; the
+            // first always runs
+            let expected = clock.longest("round");
+            if let Some(expected) = expected.filter(|e| !clock.allows(&name, *e)) {
+                break format!(
+                    "stopped by the time budget before {name} (expected {:.1} s) with the gap at {:.2}: the search was not finished",
+                    expected * super::budget::MARGIN,
+                    self.gap
+                );
+            }
+            let verdict = if self.phase == ROUND {
+                clock.time(&name, || self.round())
+            } else {
+                self.round()
+            };
+            if let Some(verdict) = verdict {
                 break verdict;
             }
         };

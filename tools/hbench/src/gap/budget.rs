@@ -1,0 +1,298 @@
+//! Where an analysis spends its time, and a bounded-cost mode (issue 14, item 7: a 2 s
+//! record analysed in 60 s on two cores).
+//!
+//! Every run keeps a clock of its phases: the search's rounds, the end question
+//! (`revision`), the experiment advice and the records' description. Given a budget
+//! (`hbench gap --budget`), a phase is started only if the time left holds what a phase of
+//! its kind is expected to cost, read from what the run has measured so far; what was left
+//! out is said in the report, so an answer cut short never passes for a finished one. The
+//! first round always runs: without it there is no answer at all.
+//!
+//! The budget is in wall seconds, the time a user waits (the report gives CPU seconds
+//! beside it). A phase is never interrupted once started: a fit stopped half-way would
+//! give a score that looks valid and is not. So a run can overrun its budget by what its
+//! last phase cost beyond the estimate; the report shows by how much.
+
+use std::sync::Mutex;
+use std::time::Instant;
+
+use serde::Serialize;
+
+use crate::bench::cpu::process_seconds;
+
+/// The clock's name of the first simulation of the records (the starting model's gap):
+/// what one simulated second costs on this machine today.
+pub const FIRST: &str = "first simulation";
+
+/// How much more than the run's measure a phase may cost: the largest ratio of a
+/// round's wall time to the longest round before it, rounded up. Measured on the four
+/// item-7 records (the Rust chirp, seed 1, form error, with nothing, the dry friction,
+/// the manifold volume and the valve lag hidden), 12 runs: 0.47 to 2.04, the largest
+/// the second round of the record with nothing hidden (18.3 s after 9.0 s; its fits
+/// carry the first step's parameter beside their own). A later round fits more carried
+/// parameters, and an added valve lag makes every simulation stiffer.
+pub const MARGIN: f64 = 2.1;
+
+/// Wall seconds the experiment advice is expected to take (`advice`), before the
+/// margin: every design simulated under each leading model (LEADING_CANDIDATES and the
+/// model as it stands), and every candidate effect simulated under the records (a record
+/// explained within its noise is searched for what it cannot show, `advice::unseen`),
+/// each simulated second at the cost the run's first simulation of `target` measured,
+/// on one core (measured: the advice of a record explained within its noise took 1.48
+/// CPU s in 1.49 s of wall time). An upper bound when the advice is not needed.
+pub fn advice_wall(clock: &Clock, target: &super::fit::Target) -> f64 {
+    let first = lock(&clock.phases)
+        .iter()
+        .find(|p| p.name == FIRST)
+        .map_or(0.0, |p| p.wall_s);
+    let recorded: f64 = target
+        .records
+        .iter()
+        .map(|r| r.measured.time.last().unwrap_or(&0.0) - r.measured.time.first().unwrap_or(&0.0))
+        .sum();
+    if recorded <= 0.0 {
+        return 0.0;
+    }
+    let designed: f64 = super::experiments::designs()
+        .iter()
+        .map(|d| d.duration)
+        .sum();
+    let models = (super::advice::LEADING_CANDIDATES + 1) as f64;
+    let candidates = hbmodel::Effect::ALL.len() as f64;
+    first / recorded * (designed * models + recorded * candidates)
+}
+
+/// One phase of a run, timed.
+#[derive(Debug, Clone, Serialize)]
+pub struct Phase {
+    /// "round 1", "end question", "advice", "records".
+    pub name: String,
+    pub wall_s: f64,
+    /// CPU seconds of every thread.
+    pub cpu_s: f64,
+    /// The wall seconds the clock expected before the phase started (`Clock::allows`),
+    /// kept to show how well the budget reads the run.
+    pub expected_s: Option<f64>,
+}
+
+/// What a run's clock tells the report.
+#[derive(Debug, Clone, Serialize)]
+pub struct Timing {
+    /// The wall seconds the user allowed (`--budget`), if any.
+    pub budget_s: Option<f64>,
+    pub phases: Vec<Phase>,
+    /// What the budget left out, in words ("round 3: expected 21 s, 12 s left").
+    pub skipped: Vec<String>,
+    pub wall_s: f64,
+    pub cpu_s: f64,
+}
+
+/// A run's clock: the phases timed so far and the budget they are held to.
+pub struct Clock {
+    start: Instant,
+    cpu0: f64,
+    budget: Option<f64>,
+    phases: Mutex<Vec<Phase>>,
+    skipped: Mutex<Vec<String>>,
+    /// The last expectation `allows` was asked about, for the phase that follows.
+    expected: Mutex<Option<(String, f64)>>,
+}
+
+impl Clock {
+    /// A clock started now, holding the run to `budget` wall seconds if given.
+    pub fn new(budget: Option<f64>) -> Clock {
+        Clock {
+            start: Instant::now(),
+            cpu0: process_seconds(),
+            budget,
+            phases: Mutex::new(Vec::new()),
+            skipped: Mutex::new(Vec::new()),
+            expected: Mutex::new(None),
+        }
+    }
+
+    /// Wall seconds since the clock started.
+    pub fn elapsed(&self) -> f64 {
+        self.start.elapsed().as_secs_f64()
+    }
+
+    /// Run `work` as the phase `name`, timed.
+    pub fn time<T>(&self, name: &str, work: impl FnOnce() -> T) -> T {
+        let (wall, cpu) = (Instant::now(), process_seconds());
+        let out = work();
+        let expected = lock(&self.expected)
+            .take()
+            .filter(|(what, _)| what == name)
+            .map(|(_, e)| e);
+        let phase = Phase {
+            name: name.to_string(),
+            wall_s: wall.elapsed().as_secs_f64(),
+            cpu_s: process_seconds() - cpu,
+            expected_s: expected,
+        };
+        lock(&self.phases).push(phase);
+        out
+    }
+
+    /// The longest wall time of the phases whose name holds `kind` ("round": the
+    /// search's and the end question's), if any ran: what the next one is expected to
+    /// cost. The longest, not the last: a later round fits more carried parameters.
+    pub fn longest(&self, kind: &str) -> Option<f64> {
+        lock(&self.phases)
+            .iter()
+            .filter(|p| p.name.contains(kind))
+            .map(|p| p.wall_s)
+            .max_by(f64::total_cmp)
+    }
+
+    /// Whether a phase the run measured at `measure` wall seconds (the longest round, the
+    /// advice's estimate) fits the time left with the [`MARGIN`]; if not, `what` is noted
+    /// as left out.
+    pub fn allows(&self, what: &str, measure: f64) -> bool {
+        let expected = measure * MARGIN;
+        *lock(&self.expected) = Some((what.to_string(), expected));
+        let Some(budget) = self.budget else {
+            return true;
+        };
+        let left = budget - self.elapsed();
+        if expected <= left {
+            return true;
+        }
+        lock(&self.skipped).push(format!(
+            "{what}: expected {expected:.1} s, {:.1} s of the {budget:.0} s budget left",
+            left.max(0.0)
+        ));
+        false
+    }
+
+    /// The phases so far and what was left out.
+    pub fn timing(&self) -> Timing {
+        Timing {
+            budget_s: self.budget,
+            phases: lock(&self.phases).clone(),
+            skipped: lock(&self.skipped).clone(),
+            wall_s: self.elapsed(),
+            cpu_s: process_seconds() - self.cpu0,
+        }
+    }
+}
+
+/// A poisoned lock still holds the list as the panicking thread left it, which is all a
+/// clock needs.
+fn lock<T>(m: &Mutex<T>) -> std::sync::MutexGuard<'_, T> {
+    m.lock().unwrap_or_else(|e| e.into_inner())
+}
+
+/// `--budget` as a number of wall seconds a run can be held to.
+pub fn check(budget: Option<f64>) -> Result<(), String> {
+    match budget {
+        Some(b) if !(b.is_finite() && b > 0.0) => Err(format!(
+            "--budget {b}: a positive number of seconds is expected"
+        )),
+        _ => Ok(()),
+    }
+}
+
+/// The report's words on the clock: each phase, and what the budget left out.
+pub fn markdown(t: &Timing) -> String {
+    let mut s = String::from(
+        "## Time\n\n| phase | wall s | expected wall s | CPU s |\n|---|---|---|---|\n",
+    );
+    for p in &t.phases {
+        let expected = p.expected_s.map_or("-".into(), |e| format!("{e:.2}"));
+        s += &format!(
+            "| {} | {:.2} | {expected} | {:.2} |\n",
+            p.name, p.wall_s, p.cpu_s
+        );
+    }
+    s += &format!(
+        "| **whole analysis** | {:.1} | | {:.1} |\n\n",
+        t.wall_s, t.cpu_s
+    );
+    match t.budget_s {
+        None => s += "No time budget was set (`--budget`): every phase ran.\n",
+        Some(b) if t.skipped.is_empty() => {
+            s += &format!("Budget {b:.0} s: every phase fitted in it.\n")
+        }
+        Some(b) => {
+            s += &format!(
+                "Budget {b:.0} s. **Left out to hold it** (the answer above is the run as it stood, not a finished one):\n\n"
+            );
+            for w in &t.skipped {
+                s += &format!("- {w}\n");
+            }
+        }
+    }
+    s
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+    use crate::gap::blind::Setup;
+    use crate::gap::hide::Kind;
+    use crate::gap::variants::Simulator;
+    use crate::gap::{run_with, Settings};
+    use hbmodel::effects::Effect;
+
+    /// A budget spent by the first round: the run keeps that round's step, starts no
+    /// other round, no end question and no advice, and says so in its verdict and its
+    /// timing (the record: +-10 mm steps with a 0.3 ms sensor delay hidden, which round 1
+    /// names).
+    #[test]
+    fn a_spent_budget_ends_the_run_after_its_first_round_and_says_so() {
+        let s = Setup::new(Simulator::Rust, false, &[Effect::SensorDelay], 2);
+        let record = crate::gap::tests::record(&s, Kind::Steps, 2);
+        let settings = Settings {
+            budget: Some(1e-3),
+            ..Settings::default()
+        };
+        let o = run_with(&s.known, std::slice::from_ref(&record), settings).expect("it runs");
+        assert_eq!(o.steps.len(), 1, "{:?}", o.steps);
+        assert_eq!(o.steps[0].name, "sensor_delay");
+        assert!(o.verdict.contains("time budget"), "{}", o.verdict);
+        let t = &o.timing;
+        let rounds: Vec<&str> = t
+            .phases
+            .iter()
+            .map(|p| p.name.as_str())
+            .filter(|n| n.contains("round") || n.contains("question") || *n == "advice")
+            .collect();
+        assert_eq!(rounds, ["round 1"], "{:?}", t.phases);
+        assert!(
+            t.skipped.iter().any(|w| w.starts_with("round 2")),
+            "{:?}",
+            t.skipped
+        );
+        assert!(
+            t.skipped.iter().any(|w| w.starts_with("advice")),
+            "{:?}",
+            t.skipped
+        );
+        assert!(markdown(t).contains("Left out to hold it"));
+    }
+
+    #[test]
+    fn a_phase_runs_only_if_the_time_left_holds_it() {
+        let free = Clock::new(None);
+        assert!(free.allows("round 2", 1e9));
+        let held = Clock::new(Some(0.2));
+        held.time("round 1", || {
+            std::thread::sleep(std::time::Duration::from_millis(120))
+        });
+        let round = held.longest("round").expect("a round was timed");
+        assert!(round >= 0.12, "round 1 took {round} s");
+        // 0.08 s left: a second round like the first does not fit, a short phase does
+        assert!(!held.allows("round 2", round));
+        assert!(held.allows("records", 0.01));
+        let t = held.timing();
+        assert_eq!(t.skipped.len(), 1);
+        // the round's measure with the margin
+        let expected = format!("round 2: expected {:.1} s", round * MARGIN);
+        assert!(t.skipped[0].starts_with(&expected), "{}", t.skipped[0]);
+        assert_eq!(t.phases[0].name, "round 1");
+        assert!(markdown(&t).contains("Left out to hold it"));
+        assert!(check(Some(0.0)).is_err() && check(Some(f64::NAN)).is_err());
+        assert!(check(Some(60.0)).is_ok() && check(None).is_ok());
+    }
+}
