@@ -5,6 +5,7 @@ use hbmodel::Params;
 use super::super::blind::known_model;
 use super::super::experiments::{designs, Design, Kind};
 use super::super::Scored;
+use super::recommendation::SAFE_LN_BAYES;
 use super::*;
 
 /// The advice between `leading`, no design recorded: the separations at the noise floor

@@ -406,7 +406,7 @@ fn a_question_is_widened_only_by_a_recalibration_that_pays_its_price() {
 
 /// A hidden sensor delay's steps (Rust bench, seed 2), asked between a valve lag and the
 /// delay from the known model with nothing re-fitted.
-fn delay_or_lag() -> (Setup, [String; 2], Asked) {
+pub(super) fn delay_or_lag() -> (Setup, [String; 2], Asked) {
     let (s, records) = delay_on_steps();
     let target = target_of(&records).expect("a target");
     let names = vec!["steps".to_string()];
@@ -421,71 +421,6 @@ fn delay_or_lag() -> (Setup, [String; 2], Asked) {
     )
     .expect("the question");
     (s, between, asked)
-}
-
-/// A question whose candidates all ended on a bound of the same recalibration names
-/// it, to be held at the model's value; one whose candidates ended on different bounds,
-/// or on a parameter the question did not re-fit, or off every bound, names none.
-#[test]
-fn a_recalibration_every_candidate_pins_to_a_bound_is_held() {
-    let (_, _, mut asked) = delay_or_lag();
-    let set = [
-        "fluid.bulk_modulus".to_string(),
-        "actuator.mass".to_string(),
-    ];
-    let pin = |a: &mut Asked, bounds: [&[&'static str]; 2]| {
-        for (c, b) in a.decision.candidates.iter_mut().zip(bounds) {
-            c.on_bound = b.first().map(|p| (*p, 1.0));
-            c.bounded = b.to_vec();
-        }
-    };
-    let (bulk, mass, payload) = (
-        "fluid.bulk_modulus",
-        "actuator.mass",
-        "actuator.payload_mass",
-    );
-    let cases: [([&[&'static str]; 2], Option<&str>); 8] = [
-        ([&[bulk], &[bulk]], Some(bulk)),
-        ([&[bulk], &[mass]], None),
-        ([&[bulk], &[]], None),
-        ([&[], &[]], None),
-        ([&["sv1.rated_flow"], &["sv1.rated_flow"]], None),
-        // a candidate's own parameter on its bound before the recalibration
-        ([&[mass, bulk], &[payload, mass, bulk]], Some(mass)),
-        ([&[payload, bulk, mass], &[mass, bulk]], Some(bulk)),
-        ([&[payload], &[payload]], None),
-    ];
-    for (bounds, held) in cases {
-        pin(&mut asked, bounds);
-        assert_eq!(pinned_by_all(&asked, &set).as_deref(), held, "{bounds:?}");
-    }
-}
-
-/// A question's winner does not beat a candidate that a bound of its fit stopped while
-/// it fitted better; one that fitted worse, or better off every bound, it does.
-#[test]
-fn a_winner_does_not_beat_a_better_fit_a_bound_stopped() {
-    let (_, _, mut asked) = delay_or_lag();
-    assert_eq!(asked.fits.len(), 2);
-    let first = asked.fits[0].name.clone();
-    let mut case = |chi2: [f64; 2], bound: Option<&'static str>, won: Option<usize>| {
-        for (k, f) in asked.fits.iter_mut().enumerate() {
-            f.chi2 = chi2[k];
-            f.gap = chi2[k].sqrt();
-        }
-        asked.decision.candidates[0].on_bound = bound.map(|p| (p, 1.0));
-        asked.decision.candidates[1].on_bound = None;
-        asked.won = won;
-        outfitted(&asked).map(|(name, gap, path)| (name, gap, path.to_string()))
-    };
-    let mass = Some("actuator.mass");
-    assert_eq!(
-        case([9.0, 16.0], mass, Some(1)),
-        Some((first, 3.0, "actuator.mass".to_string()))
-    );
-    assert_eq!(case([9.0, 16.0], None, Some(1)), None);
-    assert_eq!(case([25.0, 16.0], mass, Some(1)), None);
-    assert_eq!(case([9.0, 16.0], mass, None), None);
 }
 
 /// A payload hidden with model-form error (Rust bench, +-10 mm steps, seed 3: the LVDT
