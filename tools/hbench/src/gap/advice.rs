@@ -228,7 +228,7 @@ pub fn after(
     if let Some(u) = earliest_contested(steps, rounds) {
         let round = &rounds[u.step];
         let scale = Scale::new(u.tau, u.gap);
-        let mut assessed = assess(&u.pair, noise, scale, &designs, progress, false);
+        let mut assessed = assess(&u.pair, noise, scale, &designs, progress);
         recorded::read_at_records(&mut assessed, recorded, |a, b| {
             observed(&round.fits, None, a, b)
         });
@@ -250,7 +250,7 @@ pub fn after(
         .map(|s| s.name.as_str());
     let leading = leading(model, &last.fits, accepted);
     let scale = Scale::new(last.tau, gap);
-    let mut assessed = assess(&leading, noise, scale, &designs, progress, false);
+    let mut assessed = assess(&leading, noise, scale, &designs, progress);
     recorded::read_at_records(&mut assessed, recorded, |a, b| {
         observed(&last.fits, accepted, a, b)
     });
@@ -352,15 +352,14 @@ pub fn separation(
 }
 
 /// Simulate the `leading` models under every design (in parallel) and assess how far
-/// apart each design sets every pair of them or (`first_only`) the first model and each
-/// other one, at the record's `noise`, read against its residual's `scale`.
+/// apart each design sets every pair of them, at the record's `noise`, read against its
+/// residual's `scale`.
 fn assess(
     leading: &[(String, Params)],
     noise: &[(&'static str, f64)],
     scale: Scale,
     designs: &[Design],
     progress: bool,
-    first_only: bool,
 ) -> Vec<Assessed> {
     let runs: Vec<(usize, usize)> = (0..designs.len())
         .flat_map(|d| (0..leading.len()).map(move |m| (d, m)))
@@ -403,8 +402,7 @@ fn assess(
                 }
             };
             let mut pairs = Vec::new();
-            let firsts = if first_only { 1 } else { sims.len() };
-            for i in 0..firsts.min(sims.len()) {
+            for i in 0..sims.len() {
                 for j in i + 1..sims.len() {
                     pairs.push(separation(
                         (&leading[i].0, sims[i]),

@@ -23,7 +23,7 @@ fn advise(
         from,
         leading,
         scale,
-        assess(leading, noise, scale, designs, progress, false),
+        assess(leading, noise, scale, designs, progress),
     )
 }
 
@@ -438,7 +438,7 @@ fn a_design_the_records_hold_is_read_at_what_they_showed() {
     ];
     let steps = Design::standard(Kind::Steps);
     let scale = Scale::new(1.0, 1.0);
-    let mut assessed = assess(&leading, &noise(), scale, &[steps, other], false, false);
+    let mut assessed = assess(&leading, &noise(), scale, &[steps, other], false);
     let promised = assessed[0].least_ln_bayes_factor.unwrap();
     assert!(promised > 1e3, "{promised}");
     recorded::read_at_records(&mut assessed, &[steps], |_, _| Some(1.5));
