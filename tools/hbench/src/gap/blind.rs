@@ -227,8 +227,9 @@ fn fitted_of(
 
 /// `case_with`, and with `follow` the experiment advice put to the test (issue 14 item
 /// 6): when the hidden effect was not named first, the bench is recorded again under the
-/// design the workflow recommended (new noise); that record alone is analysed afresh, and
-/// the advice's question is decided on it (`decision::decide`).
+/// design the workflow recommended (new noise); that record alone is analysed afresh,
+/// then with the first records as a user holding both would (`hbench gap` with both),
+/// and the advice's question is decided on it (`decision::decide`).
 ///
 /// With `report_to` the analysis's report (`report::write`: report.md, report.json and
 /// the figures) is kept in that directory, as `hbench gap` writes it: a case's numbers
@@ -317,6 +318,7 @@ pub fn case_advised(
         form: form_error.then(|| s.bench.form.to_json()),
         advised: None,
         named_after_advice: None,
+        named_jointly: None,
         advice_failed: None,
         unadvised: None,
         fitted_after_advice: None,
@@ -339,7 +341,7 @@ pub fn case_advised(
         advised::follow(
             &mut case,
             outcome.advice.as_ref(),
-            &s,
+            (&s, &records),
             hidden,
             seed,
             settings,

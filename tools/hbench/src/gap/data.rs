@@ -270,6 +270,7 @@ pub fn load_measured(path: &Path, e: &Experiment) -> Result<Measured, String> {
 }
 
 /// One record handed to the workflow: how the bench was driven and what it recorded.
+#[derive(Clone)]
 pub struct Record {
     /// What the reports call it (the data file's stem).
     pub name: String,

@@ -33,7 +33,7 @@ impl Followed<'_> {
     pub fn record(
         &self,
         case: &mut Case,
-        s: &Setup,
+        (s, first): (&Setup, &[Record]),
         base: &Params,
         hidden: &[Effect],
         (path, keep_in): (&str, Option<&Path>),
@@ -56,6 +56,19 @@ impl Followed<'_> {
                 ..self.settings
             },
         )?;
+        // a user who holds the first record too analyses both at once (item 3): the
+        // first record pins what it showed (its recalibrations at the thesis's supply),
+        // the advised one what the first could not show
+        let mut both = first.to_vec();
+        both.push(record.clone());
+        let jointly = run_with(
+            base,
+            &both,
+            Settings {
+                advise: false,
+                ..self.settings
+            },
+        )?;
         let (decision, _) = decision::decide(
             &self.advice.from,
             &self.advice.between,
@@ -70,6 +83,7 @@ impl Followed<'_> {
         // written only once every part has succeeded: a case whose advice failed is
         // counted with the failures, never also with the records analysed
         case.named_after_advice = Some(named(&again, base, hidden));
+        case.named_jointly = Some(named(&jointly, base, hidden));
         case.fitted_after_advice = fitted_of(&again, base, hidden, path).0;
         case.decided = decision.winner.clone();
         case.advice_between = self.advice.between.clone();
@@ -123,7 +137,7 @@ const ADVISED_SEED: u64 = 2000;
 pub fn follow(
     case: &mut Case,
     advice: Option<&Advice>,
-    s: &Setup,
+    (s, first): (&Setup, &[Record]),
     hidden: &[Effect],
     seed: u64,
     settings: Settings,
@@ -146,7 +160,7 @@ pub fn follow(
         seed,
         settings,
     };
-    if let Err(e) = followed.record(case, s, &s.known, hidden, (path, keep_in)) {
+    if let Err(e) = followed.record(case, (s, first), &s.known, hidden, (path, keep_in)) {
         eprintln!("{}: the advised record failed: {e}", design.label());
         case.advice_failed = Some(e);
     }

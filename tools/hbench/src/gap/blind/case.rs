@@ -59,6 +59,10 @@ pub struct Case {
     pub advised: Option<String>,
     #[serde(default)]
     pub named_after_advice: Option<Vec<String>>,
+    /// What the advised record named analysed together with the case's first records
+    /// (several records in one analysis, item 3): what a user holding both would run.
+    #[serde(default)]
+    pub named_jointly: Option<Vec<String>>,
     /// Why the bench could not record the advised design, when it could not.
     #[serde(default)]
     pub advice_failed: Option<String>,

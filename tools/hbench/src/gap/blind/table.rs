@@ -446,17 +446,25 @@ fn advice_line(cases: &[Case]) -> String {
             .is_some_and(|n| c.hidden.contains(n))
     };
     let decided = |c: &Case| c.decided.as_ref().is_some_and(|d| c.hidden.contains(d));
+    let jointly = |c: &Case| {
+        c.named_jointly
+            .as_ref()
+            .and_then(|n| n.first())
+            .is_some_and(|n| c.hidden.contains(n))
+    };
     let mut line = format!(
         "\nAdvice followed: {} of the {} cases whose hidden effect was not named first got a \
          recommended experiment the bench recorded ({} more could not be recorded, {} got no \
          recommendation: no design separates their question); a record of \
          it, analysed afresh, named the hidden effect first \
-         in {}; the question decided on it (`gap --between`) named it in {}.\n",
+         in {}; analysed with the first record, in {}; the question decided on it (`gap \
+         --between`) named it in {}.\n",
         advised.len(),
         missed.len(),
         failed.len(),
         unadvised.len(),
         rate(&advised, named),
+        rate(&advised, jointly),
         rate(&advised, decided)
     );
     for c in &failed {
@@ -479,21 +487,16 @@ fn advice_line(cases: &[Case]) -> String {
     for c in advised {
         let _ = writeln!(
             line,
-            "- {}: {}: afresh {}{}; between {}: {} (ln B expected {}, found {})",
+            "- {}: {}: afresh {}{}; with the first record {}; between {}: {} (ln B expected {}, found {})",
             label(c),
             c.advised.as_deref().unwrap_or("-"),
-            c.named_after_advice
-                .as_ref()
-                .map_or("-".into(), |n| if n.is_empty() {
-                    "nothing".into()
-                } else {
-                    n.join(", ")
-                }),
+            listed(&c.named_after_advice),
             match (c.fitted_after_advice, c.truth) {
                 (Some(f), Some(t)) =>
                     format!(" (fitted {:+.1} % off the truth)", 100.0 * (f / t - 1.0)),
                 _ => String::new(),
             },
+            listed(&c.named_jointly),
             if c.advice_between.is_empty() {
                 "-".into()
             } else {
@@ -505,6 +508,17 @@ fn advice_line(cases: &[Case]) -> String {
         );
     }
     line
+}
+
+/// What a record's analysis named, in order: "-" when it was not run.
+fn listed(named: &Option<Vec<String>>) -> String {
+    named.as_ref().map_or("-".into(), |n| {
+        if n.is_empty() {
+            "nothing".into()
+        } else {
+            n.join(", ")
+        }
+    })
 }
 
 pub fn write(out: &Path, cases: &[Case]) -> Result<String, String> {

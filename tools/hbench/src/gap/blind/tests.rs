@@ -73,7 +73,8 @@ fn every_hidden_effect_is_named_first_and_fitted() {
 /// the bulk modulus recalibrated against 0.921 with the air, ln B 1.4, and the run takes
 /// neither as named. The workflow must then say so and recommend an experiment that
 /// tells them apart (issue 14 item 6), and a record of that experiment must name the air
-/// and fit it (measured: a +-3.4 mm sweep in mode 3, which names the air).
+/// and fit it (measured: a +-3.4 mm sweep in mode 3, which names the air), alone and
+/// analysed with the first steps.
 #[test]
 fn air_on_steps_is_told_from_a_softer_oil_by_the_advised_record() {
     let kept = std::env::temp_dir().join(format!("hb-blind-case-{}", std::process::id()));
@@ -120,6 +121,16 @@ fn air_on_steps_is_told_from_a_softer_oil_by_the_advised_record() {
         "{c:?}"
     );
     assert_eq!(c.decided.as_deref(), Some("entrained_air"), "{c:?}");
+    // the first steps and the advised record together name it too (item 3)
+    let jointly = c
+        .named_jointly
+        .as_ref()
+        .expect("analysed with the first record");
+    assert_eq!(
+        jointly.first().map(String::as_str),
+        Some("entrained_air"),
+        "{c:?}"
+    );
     let (f, t) = (c.fitted_after_advice.expect("fitted"), c.truth.unwrap());
     assert!((f / t - 1.0).abs() <= 0.2, "fitted {f} against {t}");
 }
