@@ -23,6 +23,11 @@ use crate::bench::cpu::process_seconds;
 /// The clock's name of the first simulation of the records (the starting model's gap):
 /// what one simulated second costs on this machine today.
 pub const FIRST: &str = "first simulation";
+/// The clock's name of the search's rounds ("round 2").
+pub const ROUND: &str = "round";
+/// The clock's name of an end question's continued search's rounds, held to the budget
+/// but timed within the question's phase.
+pub const CONTINUED: &str = "end question's round";
 
 /// How much more than the run's measure a phase may cost: the largest ratio of a
 /// round's wall time to the longest round before it, rounded up. Measured on the four
@@ -70,7 +75,7 @@ pub struct Phase {
     pub wall_s: f64,
     /// CPU seconds of every thread.
     pub cpu_s: f64,
-    /// The wall seconds the clock expected before the phase started (`Clock::allows`),
+    /// The wall seconds the clock expected before the phase started (`Clock::admit`),
     /// kept to show how well the budget reads the run.
     pub expected_s: Option<f64>,
 }
@@ -94,8 +99,6 @@ pub struct Clock {
     budget: Option<f64>,
     phases: Mutex<Vec<Phase>>,
     skipped: Mutex<Vec<String>>,
-    /// The last expectation `allows` was asked about, for the phase that follows.
-    expected: Mutex<Option<(String, f64)>>,
 }
 
 impl Clock {
@@ -107,7 +110,6 @@ impl Clock {
             budget,
             phases: Mutex::new(Vec::new()),
             skipped: Mutex::new(Vec::new()),
-            expected: Mutex::new(None),
         }
     }
 
@@ -116,14 +118,10 @@ impl Clock {
         self.start.elapsed().as_secs_f64()
     }
 
-    /// Run `work` as the phase `name`, timed.
-    pub fn time<T>(&self, name: &str, work: impl FnOnce() -> T) -> T {
+    /// Run `work` as the phase `name`, timed beside what was `expected` of it (`admit`).
+    pub fn time<T>(&self, name: &str, expected: Option<f64>, work: impl FnOnce() -> T) -> T {
         let (wall, cpu) = (Instant::now(), process_seconds());
         let out = work();
-        let expected = lock(&self.expected)
-            .take()
-            .filter(|(what, _)| what == name)
-            .map(|(_, e)| e);
         let phase = Phase {
             name: name.to_string(),
             wall_s: wall.elapsed().as_secs_f64(),
@@ -134,35 +132,37 @@ impl Clock {
         out
     }
 
-    /// The longest wall time of the phases whose name holds `kind` ("round": the
-    /// search's and the end question's), if any ran: what the next one is expected to
-    /// cost. The longest, not the last: a later round fits more carried parameters.
-    pub fn longest(&self, kind: &str) -> Option<f64> {
+    /// The longest wall time of the search's rounds so far, if any ran: what the next
+    /// round, or an end question (which fits its candidates as a round does), is expected
+    /// to cost. The longest, not the last: a later round fits more carried parameters.
+    pub fn longest_round(&self) -> Option<f64> {
         lock(&self.phases)
             .iter()
-            .filter(|p| p.name.contains(kind))
+            .filter(|p| p.name.starts_with(ROUND))
             .map(|p| p.wall_s)
             .max_by(f64::total_cmp)
     }
 
-    /// Whether a phase the run measured at `measure` wall seconds (the longest round, the
-    /// advice's estimate) fits the time left with the [`MARGIN`]; if not, `what` is noted
-    /// as left out.
-    pub fn allows(&self, what: &str, measure: f64) -> bool {
-        let expected = measure * MARGIN;
-        *lock(&self.expected) = Some((what.to_string(), expected));
+    /// Whether the phase `what`, which the run measured at `measure` wall seconds (the
+    /// longest round, the advice's estimate), fits the time left with the [`MARGIN`]:
+    /// Ok with what is expected of it (None: nothing measured yet, it runs), or Err with
+    /// the expectation the time left cannot hold, `what` then noted as left out.
+    pub fn admit(&self, what: &str, measure: Option<f64>) -> Result<Option<f64>, f64> {
+        let Some(expected) = measure.map(|m| m * MARGIN) else {
+            return Ok(None);
+        };
         let Some(budget) = self.budget else {
-            return true;
+            return Ok(Some(expected));
         };
         let left = budget - self.elapsed();
         if expected <= left {
-            return true;
+            return Ok(Some(expected));
         }
         lock(&self.skipped).push(format!(
             "{what}: expected {expected:.1} s, {:.1} s of the {budget:.0} s budget left",
             left.max(0.0)
         ));
-        false
+        Err(expected)
     }
 
     /// The phases so far and what was left out.
@@ -275,16 +275,17 @@ mod tests {
     #[test]
     fn a_phase_runs_only_if_the_time_left_holds_it() {
         let free = Clock::new(None);
-        assert!(free.allows("round 2", 1e9));
+        assert_eq!(free.admit("round 2", Some(1e9)), Ok(Some(1e9 * MARGIN)));
         let held = Clock::new(Some(0.2));
-        held.time("round 1", || {
+        assert_eq!(held.admit("round 1", held.longest_round()), Ok(None));
+        held.time("round 1", None, || {
             std::thread::sleep(std::time::Duration::from_millis(120))
         });
-        let round = held.longest("round").expect("a round was timed");
+        let round = held.longest_round().expect("a round was timed");
         assert!(round >= 0.12, "round 1 took {round} s");
         // 0.08 s left: a second round like the first does not fit, a short phase does
-        assert!(!held.allows("round 2", round));
-        assert!(held.allows("records", 0.01));
+        assert_eq!(held.admit("round 2", Some(round)), Err(round * MARGIN));
+        assert!(held.admit("records", Some(0.01)).is_ok());
         let t = held.timing();
         assert_eq!(t.skipped.len(), 1);
         // the round's measure with the margin

@@ -340,7 +340,7 @@ pub fn run_with(start: &Params, records: &[Record], settings: Settings) -> Resul
     let clock = budget::Clock::new(settings.budget);
     let start = &at_rtol(start, rtol);
     let target = target_of(records)?;
-    let initial_gap = clock.time(budget::FIRST, || target.gap(start));
+    let initial_gap = clock.time(budget::FIRST, None, || target.gap(start));
     let names: Vec<String> = records.iter().map(|r| r.name.clone()).collect();
     let mut search = search::Search::new(&target, &names, start, within, progress);
     search.max_effects = settings.max_effects;
@@ -363,35 +363,20 @@ pub fn run_with(start: &Params, records: &[Record], settings: Settings) -> Resul
         verdict,
         ..
     } = search;
-    // a new record would be read at the sensors' noise the first record shows
-    let advice = (settings.advise && clock.allows("advice", budget::advice_wall(&clock, &target)))
-        .then(|| {
-            clock.time("advice", || {
-                let noise = &target.records[0].noise;
-                let recorded: Vec<experiments::Design> = records
-                    .iter()
-                    .filter_map(|r| experiments::design_of(&r.experiment, &r.measured))
-                    .collect();
-                advice::after(&model, &steps, gap, &rounds, noise, &recorded, progress).or_else(
-                    || {
-                        // explained within the noise: what could the record not have shown?
-                        (gap <= NOISE_FLOOR_GAP)
-                            .then(|| {
-                                let tau = rounds.last().map_or(1.0, |r| r.tau);
-                                let scale = advice::Scale::new(tau, gap);
-                                advice::unseen::check(&model, &target, noise, scale, progress)
-                            })
-                            .flatten()
-                    },
-                )
-            })
-        })
-        .flatten()
-        .map(|mut a| {
-            a.recalibrate = decision::open(&a.from, within, &recalibrated, &a.between);
-            a
-        });
-    let outcomes = clock.time("records", || {
+    let advice_cost = settings
+        .advise
+        .then(|| clock.admit("advice", Some(budget::advice_wall(&clock, &target))));
+    let advice = match advice_cost {
+        Some(Ok(expected)) => clock.time("advice", expected, || {
+            advise(&model, (&steps, &rounds), gap, (&target, records), progress)
+        }),
+        _ => None,
+    }
+    .map(|mut a| {
+        a.recalibrate = decision::open(&a.from, within, &recalibrated, &a.between);
+        a
+    });
+    let outcomes = clock.time("records", None, || {
         records
             .iter()
             .zip(&target.records)
@@ -414,6 +399,32 @@ pub fn run_with(start: &Params, records: &[Record], settings: Settings) -> Resul
         revision: revision.map(|r| r.report),
         timing: clock.timing(),
     })
+}
+
+/// What to measure next after a run that ended at `model` and `gap` (`advice`): the
+/// question its steps and rounds left, or, explained within the noise, what the records
+/// could not have shown; a new record is read at the noise the first record shows.
+fn advise(
+    model: &Params,
+    (steps, rounds): (&[Step], &[advice::Round]),
+    gap: f64,
+    (target, records): (&Target, &[Record]),
+    progress: bool,
+) -> Option<advice::Advice> {
+    let noise = &target.records[0].noise;
+    let recorded: Vec<experiments::Design> = records
+        .iter()
+        .filter_map(|r| experiments::design_of(&r.experiment, &r.measured))
+        .collect();
+    if let Some(a) = advice::after(model, steps, gap, rounds, noise, &recorded, progress) {
+        return Some(a);
+    }
+    if gap > NOISE_FLOOR_GAP {
+        return None;
+    }
+    let tau = rounds.last().map_or(1.0, |r| r.tau);
+    let scale = advice::Scale::new(tau, gap);
+    advice::unseen::check(model, target, noise, scale, progress)
 }
 
 /// One record's gaps and localisation under the starting and the final model.

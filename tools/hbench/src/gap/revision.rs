@@ -159,9 +159,11 @@ pub fn reask<'t>(run: &Search<'t>, within: f64, progress: bool) -> Option<Reaske
     for q in questions(run).into_iter().take(most) {
         // a question fits its candidates from the model before the step, as a round does
         let name = format!("end question on step {}", q.k + 1);
-        let asked = match run.clock {
-            Some(clock) if !clock.allows(&name, clock.longest("round").unwrap_or(0.0)) => None,
-            Some(clock) => clock.time(&name, || ask_again(run, q, within, progress)),
+        let asked = match run.clock.map(|c| (c, c.admit(&name, c.longest_round()))) {
+            Some((_, Err(_))) => None,
+            Some((clock, Ok(expected))) => {
+                clock.time(&name, expected, || ask_again(run, q, within, progress))
+            }
             None => ask_again(run, q, within, progress),
         };
         let Some(mut asked) = asked else {
@@ -303,7 +305,7 @@ fn ask_again<'t>(
     }
     let rival = d.winner.clone().unwrap_or_default();
     let mut continued = continue_with(earlier, &asked);
-    continued.phase = super::search::CONTINUED;
+    continued.phase = super::budget::CONTINUED;
     continued.run();
     let ln_b = ends_ln_b(run, &continued);
     let kept = ln_b > 0.0;

@@ -5,7 +5,7 @@
 
 use hbmodel::Params;
 
-use super::budget::Clock;
+use super::budget::{Clock, ROUND};
 use super::effects::{Fitted, StepKind};
 use super::fit::{self, Fit, Target};
 use super::holdout::{self, Validation};
@@ -13,11 +13,6 @@ use super::{
     advice, effective_samples, evidence, json_values, recalibrate, selection, signals, Scored,
     Step, MAX_STEPS, MIN_IMPROVEMENT, NOISE_FLOOR_GAP,
 };
-
-/// The clock's name of the search's rounds.
-pub const ROUND: &str = "round";
-/// The clock's name of an end question's continued search's rounds.
-pub const CONTINUED: &str = "end question's round";
 
 /// How far each list had grown when a round started: what taking the search back to
 /// that round keeps.
@@ -62,8 +57,8 @@ pub struct Search<'t> {
     /// that the time left cannot hold.
     pub clock: Option<&'t Clock>,
     /// What the clock calls this search's rounds: [`ROUND`], each timed as a phase, or
-    /// the end question's continued search's ([`CONTINUED`], `revision`), held to the
-    /// budget but timed within the question's phase.
+    /// the end question's continued search's (`budget::CONTINUED`, `revision`), held to
+    /// the budget but timed within the question's phase.
     pub phase: &'static str,
     marks: Vec<Mark>,
 }
@@ -125,26 +120,19 @@ impl<'t> Search<'t> {
                 );
             }
             let name = format!("{} {}", self.phase, self.rounds.len() + 1);
-            let Some(clock) = self.clock else {
-                if let Some(verdict) = self.round() {
-                    break verdict;
-                }
-                continue;
-            };
             // the longest round so far is what the next one is expected to cost; the
             // first always runs
-            let expected = clock.longest("round");
-            if let Some(expected) = expected.filter(|e| !clock.allows(&name, *e)) {
-                break format!(
-                    "stopped by the time budget before {name} (expected {:.1} s) with the gap at {:.2}: the search was not finished",
-                    expected * super::budget::MARGIN,
+            let expected = match self.clock.map(|c| c.admit(&name, c.longest_round())) {
+                Some(Err(expected)) => break format!(
+                    "stopped by the time budget before {name} (expected {expected:.1} s) with the gap at {:.2}: the search was not finished",
                     self.gap
-                );
-            }
-            let verdict = if self.phase == ROUND {
-                clock.time(&name, || self.round())
-            } else {
-                self.round()
+                ),
+                Some(Ok(expected)) => expected,
+                None => None,
+            };
+            let verdict = match self.clock.filter(|_| self.phase == ROUND) {
+                Some(clock) => clock.time(&name, expected, || self.round()),
+                None => self.round(),
             };
             if let Some(verdict) = verdict {
                 break verdict;

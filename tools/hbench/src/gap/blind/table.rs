@@ -439,19 +439,11 @@ fn advice_line(cases: &[Case]) -> String {
     if advised.is_empty() && failed.is_empty() && unadvised.is_empty() {
         return String::new();
     }
-    let named = |c: &Case| {
-        c.named_after_advice
-            .as_ref()
-            .and_then(|n| n.first())
-            .is_some_and(|n| c.hidden.contains(n))
-    };
-    let decided = |c: &Case| c.decided.as_ref().is_some_and(|d| c.hidden.contains(d));
-    let jointly = |c: &Case| {
-        c.named_jointly
-            .as_ref()
-            .and_then(|n| n.first())
-            .is_some_and(|n| c.hidden.contains(n))
-    };
+    // an effect named first (or decided) that the case hid
+    let hidden = |c: &Case, first: Option<&String>| first.is_some_and(|n| c.hidden.contains(n));
+    let named = |c: &Case| hidden(c, first(&c.named_after_advice));
+    let jointly = |c: &Case| hidden(c, first(&c.named_jointly));
+    let decided = |c: &Case| hidden(c, c.decided.as_ref());
     let mut line = format!(
         "\nAdvice followed: {} of the {} cases whose hidden effect was not named first got a \
          recommended experiment the bench recorded ({} more could not be recorded, {} got no \
@@ -508,6 +500,11 @@ fn advice_line(cases: &[Case]) -> String {
         );
     }
     line
+}
+
+/// The first effect a record's analysis named, if it was run and named one.
+fn first(named: &Option<Vec<String>>) -> Option<&String> {
+    named.as_ref().and_then(|n| n.first())
 }
 
 /// What a record's analysis named, in order: "-" when it was not run.

@@ -117,7 +117,7 @@ pub fn continue_without<'t>(
         Withdrawal::Refused(v) => earlier.refusals.push((*v).clone()),
         Withdrawal::Bounded { effect, .. } => earlier.withdrawn.push(effect.to_string()),
     }
-    earlier.phase = super::super::search::CONTINUED;
+    earlier.phase = super::super::budget::CONTINUED;
     earlier.run();
     let ln_b = ends_ln_b(run, &earlier);
     (earlier, ln_b)
