@@ -40,12 +40,15 @@ pub const MARGIN: f64 = 2.1;
 
 /// Wall seconds the experiment advice is expected to take (`advice`), before the
 /// margin: every design simulated under each leading model (LEADING_CANDIDATES and the
-/// model as it stands), and every candidate effect simulated under the records (a record
-/// explained within its noise is searched for what it cannot show, `advice::unseen`),
-/// each simulated second at the cost the run's first simulation of `target` measured,
-/// on one core (measured: the advice of a record explained within its noise took 1.48
-/// CPU s in 1.49 s of wall time). An upper bound when the advice is not needed.
-pub fn advice_wall(clock: &Clock, target: &super::fit::Target) -> f64 {
+/// model as it stands) and under each step of the refit that reads them (`advice::refit`:
+/// one per recalibration open in `model` and per leading candidate's own parameter, at
+/// most one each), and every candidate effect and refit step simulated under the records
+/// (a record explained within its noise is searched for what it cannot show,
+/// `advice::unseen`), each simulated second at the cost the run's first simulation of
+/// `target` measured, on one core (measured before the refit: the advice of a record
+/// explained within its noise took 1.48 CPU s in 1.49 s of wall time). An upper bound
+/// when the advice is not needed.
+pub fn advice_wall(clock: &Clock, target: &super::fit::Target, model: &hbmodel::Params) -> f64 {
     let first = lock(&clock.phases)
         .iter()
         .find(|p| p.name == FIRST)
@@ -62,8 +65,10 @@ pub fn advice_wall(clock: &Clock, target: &super::fit::Target) -> f64 {
         .iter()
         .map(|d| d.duration)
         .sum();
-    let models = (super::advice::LEADING_CANDIDATES + 1) as f64;
-    let candidates = hbmodel::Effect::ALL.len() as f64;
+    let refit = super::advice::refit::Refit::new(model, &[]).models.len() as f64;
+    let leading = (super::advice::LEADING_CANDIDATES + 1) as f64;
+    let models = 2.0 * leading + refit;
+    let candidates = hbmodel::Effect::ALL.len() as f64 + refit;
     first / recorded * (designed * models + recorded * candidates)
 }
 

@@ -365,7 +365,7 @@ pub fn run_with(start: &Params, records: &[Record], settings: Settings) -> Resul
     } = search;
     let advice_cost = settings
         .advise
-        .then(|| clock.admit("advice", Some(budget::advice_wall(&clock, &target))));
+        .then(|| clock.admit("advice", Some(budget::advice_wall(&clock, &target, &model))));
     let advice = match advice_cost {
         Some(Ok(expected)) => clock.time("advice", expected, || {
             advise(&model, (&steps, &rounds), gap, (&target, records), progress)

@@ -107,7 +107,10 @@ pub fn markdown(a: &Advice) -> String {
     let mut md = format!(
         "\n## What to measure next\n\nOn this record {}. \
          Each model was simulated, noise-free, under every experiment design; the separation \
-         is the RMS difference in noise levels of y, P1, P2 over n samples, and the expected \
+         is the RMS difference in noise levels of y, P1, P2 over n samples that is left once \
+         each model is re-fitted to the other's run (its own parameters and the known model's \
+         recalibrations, to first order within their bounds; report.json gives the share \
+         taken up as `absorbed`), and the expected \
          ln B = (n / tau) / 2 ln(1 + chi-square difference / (n m)), with the residual's \
          correlation time tau = {:.1} and its misfit m = {:.2} (the gap squared) as the record \
          showed. A design the records hold is read at no more than the ln B they showed \

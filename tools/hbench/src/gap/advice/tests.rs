@@ -23,7 +23,7 @@ fn advise(
         from,
         leading,
         scale,
-        assess(leading, noise, scale, designs, progress),
+        assess(from, leading, noise, scale, designs, progress),
     )
 }
 
@@ -73,8 +73,12 @@ fn a_fast_valve_lag_is_told_apart_on_a_sweep_not_on_slow_moves() {
             .filter_map(|d| d.pairs.first().map(|p| p.rms))
             .fold(0.0, f64::max)
     };
+    // after the refit (`refit`: the valve's flow and the loop's other recalibrations
+    // take up part of a lag's gain and phase) sweep 5 s 19.3, 2.5 s 15.6, steps +-10 mm
+    // 10.8, +-2 mm 5.6, moves 1 s 0.063, chirp 1 V 0.70 (measured); raw, the sweep stood
+    // 3.5 times over the steps
     assert!(
-        rms(Kind::Sweep) > 3.0 * rms(Kind::Moves) && rms(Kind::Sweep) > 3.0 * rms(Kind::Steps),
+        rms(Kind::Sweep) > 3.0 * rms(Kind::Moves) && rms(Kind::Sweep) > 1.5 * rms(Kind::Steps),
         "sweep {:.3} against moves {:.3}, steps {:.3}",
         rms(Kind::Sweep),
         rms(Kind::Moves),
@@ -438,7 +442,8 @@ fn a_design_the_records_hold_is_read_at_what_they_showed() {
     ];
     let steps = Design::standard(Kind::Steps);
     let scale = Scale::new(1.0, 1.0);
-    let mut assessed = assess(&leading, &noise(), scale, &[steps, other], false);
+    let from = leading[0].1.clone();
+    let mut assessed = assess(&from, &leading, &noise(), scale, &[steps, other], false);
     let promised = assessed[0].least_ln_bayes_factor.unwrap();
     assert!(promised > 1e3, "{promised}");
     recorded::read_at_records(&mut assessed, &[steps], |_, _| Some(1.5));
@@ -505,4 +510,73 @@ fn low_supply_sets_air_apart_from_the_bulk_modulus() {
         at_50 > 5.0 * at_210,
         "{at_210:.3} at 210 bar, {at_50:.3} at 50 bar"
     );
+}
+
+/// The refit the new record's analysis makes takes the air up at the thesis's supply and
+/// not at 50 bar: what `low_supply_sets_air_apart_from_the_bulk_modulus` shows of the
+/// two models' runs, read as the advice now reads a pair (`refit`). Measured on the Rust
+/// moves (form error, seed 1; the air at its plausible middle), the as-is / air pair of the
+/// +-10 mm steps went from ln B 298 to 3.0 (99 % taken up by the recalibrations), on the
+/// 50 bar steps from 1255 to 442 (78 %).
+#[test]
+fn a_refit_takes_the_air_up_at_the_thesis_supply_and_not_at_50_bar() {
+    let known = crate::gap::variants::section_4_4();
+    let mut air = known.clone();
+    air.effects.set(Effect::EntrainedAir, true);
+    air.fluid.air_fraction = 0.0023;
+    let thesis = Design::standard(Kind::Steps);
+    let low = designs()
+        .into_iter()
+        .find(|d| d.supply < thesis.supply)
+        .expect("the advice compares a low-supply design");
+    let leading = vec![
+        (AS_IS.to_string(), known.clone()),
+        ("entrained_air".to_string(), air),
+    ];
+    let noise = noise();
+    let assessed = assess(
+        &known,
+        &leading,
+        &noise,
+        Scale::new(1.0, 1.0),
+        &[thesis, low],
+        false,
+    );
+    let pair = |a: &Assessed| a.pairs.first().cloned().expect("assessed");
+    let (at_210, at_50) = (pair(&assessed[0]), pair(&assessed[1]));
+    eprintln!(
+        "taken up: {:.3} at 210 bar (ln B {:.1}), {:.3} at 50 bar (ln B {:.1})",
+        at_210.absorbed, at_210.ln_bayes_factor, at_50.absorbed, at_50.ln_bayes_factor
+    );
+    // measured: 0.997 taken up at 210 bar (ln B 0.1), 0.955 at 50 bar (ln B 11.6): the
+    // recalibrations take most of the air's compliance up at either supply, and only its
+    // pressure dependence is left, which the low supply shows clearly
+    assert!(at_210.absorbed > 0.99, "{at_210:?}");
+    assert!(at_210.ln_bayes_factor < CLEAR_LN_BAYES, "{at_210:?}");
+    assert!(at_50.absorbed < at_210.absorbed, "{at_50:?}");
+    assert!(
+        at_50.ln_bayes_factor > CLEAR_LN_BAYES
+            && at_50.ln_bayes_factor > 10.0 * at_210.ln_bayes_factor,
+        "{at_210:?} {at_50:?}"
+    );
+}
+
+/// The bounded refit: what lies outside the columns' span is left, a coefficient is
+/// held within its range, and nothing is ever left beyond the difference itself.
+#[test]
+fn a_bounded_refit_leaves_what_the_columns_cannot_reach() {
+    use nalgebra::DVector;
+    let e = |i: usize| DVector::from_fn(3, |k, _| if k == i { 1.0 } else { 0.0 });
+    let d = e(0) * 2.0 + e(1) * 0.5 + e(2) * 0.3;
+    let columns = [e(0), e(1) * 2.0];
+    // free within wide ranges: only the third component is left
+    let free = refit::unexplained(&d, &columns, &[[-10.0, 10.0], [-10.0, 10.0]]);
+    assert!((free - 0.09).abs() < 1e-9, "{free}");
+    // the first held to at most 1: one unit of it is left too
+    let held = refit::unexplained(&d, &columns, &[[-1.0, 1.0], [-10.0, 10.0]]);
+    assert!((held - 1.09).abs() < 1e-9, "{held}");
+    // nearly collinear columns, each bounded the wrong way: never more than |d|^2
+    let skew = [e(0) + e(1) * 1e-6, e(0) * -1.0];
+    let worst = refit::unexplained(&d, &skew, &[[-0.5, 0.0], [-0.5, 0.0]]);
+    assert!(worst <= d.norm_squared() + 1e-12, "{worst}");
 }
