@@ -151,9 +151,13 @@ pub struct Advice {
     pub designs: Vec<Assessed>,
     /// Label of the design that separates the closest pair most.
     pub best: Option<String>,
-    /// Whether that design separates every pair (expected ln B >= CLEAR_LN_BAYES).
+    /// Whether that design separates every pair (expected ln B >= CLEAR_LN_BAYES) but
+    /// the `equivalent` ones.
     pub separates: bool,
     pub recommendation: String,
+    /// Pairs of leading models no design separates, left out of the choice when another
+    /// pair is separated (`recommendation::equivalent_pairs`).
+    pub equivalent: Vec<(String, String)>,
     /// The candidates a record of the recommended design is to decide between
     /// (`decision::decide`): the leading models but the model as it stands.
     pub between: Vec<String>,
