@@ -23,10 +23,10 @@ use serde::Serialize;
 
 use super::advice::AS_IS;
 use super::effects::{self, Candidate, Fitted, StepKind};
-use super::evidence::{self, Preference};
+use super::evidence::{self, Misfit, Preference};
 use super::fit::{fit, fit_from, fit_warm, Fit, Target};
 use super::holdout::{Judge, Validation};
-use super::{effective_samples, recalibrate, selection, signals, target_of, Record, Scored};
+use super::{misfit, recalibrate, selection, signals, target_of, Record, Scored};
 
 /// What the records say about the question.
 #[derive(Debug, Clone, Serialize)]
@@ -36,6 +36,9 @@ pub struct Decision {
     pub gap_before: f64,
     /// Independent samples its residual is worth (N / tau).
     pub effective_samples: f64,
+    /// Its residual record by record (`evidence::Misfit`), the candidates' scores' base.
+    #[serde(skip)]
+    pub misfit: Misfit,
     /// Each candidate of the question, fitted on the records.
     pub candidates: Vec<Scored>,
     /// Best against runner-up, the model as it stands counted among them (score 0).
@@ -161,15 +164,28 @@ impl Asked {
             .fold(f64::INFINITY, f64::min)
     }
 
-    /// The least chi-square among the fits that could be taken: off every narrow bound
-    /// of their fit (`fit::Fit::on_bound`); None when every fit is on one.
-    pub fn best_eligible_chi2(&self) -> Option<f64> {
+    /// The misfit of the fit of least chi-square (`best_chi2`), record by record, in the
+    /// question model's independent samples: what a wider question is scored against.
+    pub fn best_misfit(&self) -> Misfit {
+        let best = self.fits.iter().min_by(|a, b| a.chi2.total_cmp(&b.chi2));
+        match best {
+            Some(f) if !self.decision.misfit.records.is_empty() => {
+                self.decision.misfit.with_chi2(&f.by_record())
+            }
+            _ => Misfit {
+                records: vec![(self.best_chi2(), self.decision.effective_samples)],
+            },
+        }
+    }
+
+    /// The fits that could be taken: off every narrow bound of their fit
+    /// (`fit::Fit::on_bound`).
+    pub fn eligible_fits(&self) -> impl Iterator<Item = &Fit> {
         self.fits
             .iter()
             .zip(&self.decision.candidates)
             .filter(|(_, c)| c.on_bound.is_none())
-            .map(|(f, _)| f.chi2)
-            .reduce(f64::min)
+            .map(|(f, _)| f)
     }
 
     /// The model the decision leaves: the winner's, or the re-fitted question's model.
@@ -281,7 +297,6 @@ pub fn ask(
             .iter()
             .any(|c| c.fitted.iter().any(|g| g.path == f.path))
     });
-    let n = target.len() as f64;
     // the question's model with its recalibrations re-fitted on the new records
     let baseline = (!carried.is_empty()).then(|| {
         let refit = Candidate {
@@ -304,17 +319,17 @@ pub fn ask(
     if !gap.is_finite() {
         return Err("the question's model cannot be simulated under these records".into());
     }
-    let (effective, tau) = effective_samples(target, model);
+    let (misfit, tau) = misfit(target, model, gap);
+    let effective = misfit.effective();
     let bar = crate::parallel::bar(candidates.len(), "deciding", progress);
     let fits = crate::parallel::map(&candidates, &bar, Candidate::name, |c| {
         let before = warm.and_then(|w| w.fits.iter().find(|f| f.name == c.name()));
         start.fit(target, model, c, &carried, before)
     });
-    let chi2 = gap * gap * n;
     let before = signals::Baseline::of(target, record_names, model);
     let scored: Vec<Scored> = fits
         .iter()
-        .map(|f| Scored::of(f, chi2, effective, &before))
+        .map(|f| Scored::of(f, &misfit, &before))
         .collect();
     let preference = evidence::preference(
         &Scored::contenders(&scored)
@@ -347,6 +362,7 @@ pub fn ask(
         decision: Decision {
             gap_before: gap,
             effective_samples: effective,
+            misfit,
             candidates: scored,
             preference,
             refused,

@@ -116,9 +116,9 @@ pub struct Scored {
 }
 
 impl Scored {
-    /// `f` scored against the model before it, `before`: a residual of chi-square `chi2`
-    /// worth `effective` independent samples (`evidence::score`).
-    fn of(f: &Fit, chi2: f64, effective: f64, before: &signals::Baseline) -> Scored {
+    /// `f` scored against the model before it, `before`: a residual of `misfit`, each
+    /// record's chi-square and independent samples (`evidence::Misfit::score`).
+    fn of(f: &Fit, misfit: &evidence::Misfit, before: &signals::Baseline) -> Scored {
         let bounded = f.bounded();
         // the price of the parameters it adds: the carried ones, re-fitted beside them,
         // were fitted in the model `chi2` is of (nested models, `evidence::score`)
@@ -126,7 +126,7 @@ impl Scored {
         Scored {
             effect: f.name.clone(),
             gap: f.gap,
-            score: evidence::score(chi2, f.chi2, effective, own as f64),
+            score: misfit.score(&f.by_record(), own as f64),
             parameters: json_values(&f.values),
             on_bound: bounded.first().copied(),
             bounded: bounded.iter().map(|(p, _)| *p).collect(),
@@ -173,13 +173,18 @@ impl Scored {
     }
 }
 
-/// Independent samples the residual of `model` on `target` is worth (N / tau) and its
-/// correlation time tau: a missing effect leaves a coloured residual, whose samples are
-/// not independent. (N, 1) when the model cannot be simulated.
-fn effective_samples(target: &Target, model: &Params) -> (f64, f64) {
-    let n = target.len() as f64;
-    target.residuals(model).map_or((n, 1.0), |r| {
-        evidence::effective_samples(r.as_slice(), &target.blocks())
+/// The residual of `model` on `target` record by record (`evidence::Misfit`: each
+/// record's chi-square and the independent samples it is worth) and its correlation time
+/// tau: a missing effect leaves a coloured residual, whose samples are not independent.
+/// Each record's samples at the gap `gap` and tau 1 when the model cannot be simulated.
+fn misfit(target: &Target, model: &Params, gap: f64) -> (evidence::Misfit, f64) {
+    target.misfit(model).unwrap_or_else(|| {
+        let records = target
+            .records
+            .iter()
+            .map(|r| (gap * gap * r.len() as f64, r.len() as f64))
+            .collect();
+        (evidence::Misfit { records }, 1.0)
     })
 }
 

@@ -326,8 +326,11 @@ pub fn write(out: &Path, o: &Outcome, model: Option<&Path>) -> Result<(), String
     }
     if o.records.len() > 1 {
         md.push_str(
-            "\nThe records are fitted jointly: every step is judged on all of them at once, \
-             each sample weighing the same against its own record's noise.\n",
+            "\nThe records are fitted jointly: every step is judged on all of them at once. \
+             Each record's residual variance is its own (a model is never equally far from \
+             two experiments): a fit weighs each record by its misfit under the model before \
+             it, and a candidate's score sums each record's relative drop in that record's \
+             own independent samples. The gaps are in each record's noise.\n",
         );
     }
     let _ = writeln!(

@@ -47,10 +47,10 @@ use serde::Serialize;
 
 use super::decision::{self, Asked, Decision, Start};
 use super::effects::StepKind;
-use super::evidence::{self, CLEAR_LN_BAYES};
+use super::evidence::CLEAR_LN_BAYES;
 use super::fit;
 use super::search::{step_of, Search};
-use super::{advice, effective_samples, Scored, Step};
+use super::{advice, misfit, Scored, Step};
 
 /// A run that ends above this gap (in noise levels) has its earliest step with a rival
 /// that paid its price asked again even when that step was taken clearly. Every run on
@@ -366,7 +366,7 @@ type AskWith<'a> = dyn Fn(&[String], Start) -> Option<Asked> + 'a;
 /// (measured, session 14).
 ///
 /// A set is worth the best of its candidates that could be taken (`Asked::
-/// best_eligible_chi2`): with the dead volume beside it, the seed-1 hidden volume's
+/// eligible_fits`): with the dead volume beside it, the seed-1 hidden volume's
 /// question fitted both candidates to that volume's bound and was kept as the widest, for
 /// no winner (session 26).
 ///
@@ -387,8 +387,7 @@ fn widened(
     if clear(&asked) {
         return (recalibrate, asked);
     }
-    let effective = asked.decision.effective_samples;
-    let plain = asked.best_chi2();
+    let plain = asked.best_misfit();
     let extra: Vec<&str> = decision::single_recalibrations(from, within);
     let extra: Vec<String> = decision::open(from, within, &extra, between)
         .into_iter()
@@ -405,10 +404,13 @@ fn widened(
         // a wider question is worth its best candidate that could be taken: one on a bound
         // of its fit is nobody's choice (`fit::Fit::on_bound`), and a set whose candidates
         // all are cannot name the rival
-        let Some(chi2) = a.best_eligible_chi2() else {
+        let Some(score) = a
+            .eligible_fits()
+            .map(|f| plain.score(&f.by_record(), 1.0))
+            .reduce(f64::max)
+        else {
             continue;
         };
-        let score = evidence::score(plain, chi2, effective, 1.0);
         if score > best.as_ref().map_or(0.0, |b| b.0) {
             best = Some((score, set, a));
         }
@@ -500,15 +502,11 @@ fn continue_with<'t>(mut s: Search<'t>, asked: &Asked) -> Search<'t> {
 /// its price (`evidence::score`).
 fn ends_ln_b(run: &Search, continued: &Search) -> f64 {
     let (target, _) = run.target();
-    let n = target.len() as f64;
-    let (effective, _) = effective_samples(target, &run.model);
+    let (ended, _) = misfit(target, &run.model, run.gap);
+    let (other, _) = misfit(target, &continued.model, continued.gap);
+    let chi2: Vec<f64> = other.records.iter().map(|r| r.0).collect();
     let extra = continued.carried.len() as f64 - run.carried.len() as f64;
-    evidence::score(
-        run.gap * run.gap * n,
-        continued.gap * continued.gap * n,
-        effective,
-        extra,
-    ) / 2.0
+    ended.score(&chi2, extra) / 2.0
 }
 
 /// The question's re-fitted model (its recalibrations, when it asked for any) taken as

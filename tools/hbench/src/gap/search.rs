@@ -10,8 +10,8 @@ use super::effects::{Fitted, StepKind};
 use super::fit::{self, Fit, Target};
 use super::holdout::{self, Validation};
 use super::{
-    advice, effective_samples, evidence, json_values, recalibrate, selection, signals, Scored,
-    Step, MAX_STEPS, MIN_IMPROVEMENT, NOISE_FLOOR_GAP,
+    advice, evidence, json_values, misfit, recalibrate, selection, signals, Scored, Step,
+    MAX_STEPS, MIN_IMPROVEMENT, NOISE_FLOOR_GAP,
 };
 
 /// How far each list had grown when a round started: what taking the search back to
@@ -143,7 +143,6 @@ impl<'t> Search<'t> {
     /// One round: a step taken (None), or the verdict of a search that ends.
     fn round(&mut self) -> Option<String> {
         let (target, gap) = (self.target, self.gap);
-        let n = target.len() as f64;
         self.mark();
         let done: Vec<&str> = self.carried.iter().map(|f| f.path).collect();
         let open = recalibrate::candidates(&self.model, self.within, &done);
@@ -160,14 +159,14 @@ impl<'t> Search<'t> {
             absent,
             self.progress,
         );
-        let chi2 = gap * gap * n;
-        // what the residual left by the model so far is worth: a missing effect leaves
-        // a coloured residual, whose samples are not independent
-        let (effective, tau) = effective_samples(target, &self.model);
+        // what the residual left by the model so far is worth, record by record: a
+        // missing effect leaves a coloured residual, whose samples are not independent
+        let (misfit, tau) = misfit(target, &self.model, gap);
+        let effective = misfit.effective();
         let before = signals::Baseline::of(target, self.names, &self.model);
         let scored: Vec<(Scored, &Fit)> = fits
             .iter()
-            .map(|f| (Scored::of(f, chi2, effective, &before), f))
+            .map(|f| (Scored::of(f, &misfit, &before), f))
             .collect();
         let round = advice::Round {
             start: self.model.clone(),

@@ -298,15 +298,15 @@ fn a_candidate_pays_for_what_it_adds_and_an_effect_must_be_clear() {
         params: hbmodel::Params::default(),
         values,
         chi2: after * after * n,
+        objective: after * after * n,
         gap: after,
         signal_gaps: Vec::new(),
+        record_chi2: Vec::new(),
     };
-    let s = Scored::of(
-        &fit,
-        before * before * n,
-        effective,
-        &signals::Baseline::default(),
-    );
+    let misfit = crate::gap::evidence::Misfit {
+        records: vec![(before * before * n, effective)],
+    };
+    let s = Scored::of(&fit, &misfit, &signals::Baseline::default());
     // its own two parameters' price, not six
     let drop = effective * (before * before / (after * after)).ln();
     assert!(

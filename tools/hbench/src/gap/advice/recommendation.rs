@@ -70,9 +70,10 @@ pub(super) fn recommend(
 ) -> Advice {
     let equivalent = equivalent_pairs(&designs);
     // the least separation of the pairs some design tells apart
-    let least = |a: &Assessed| match a.least_ln_bayes_factor {
-        Some(_) => closest(a, &equivalent).map_or(f64::NEG_INFINITY, |p| p.ln_bayes_factor),
-        None => f64::NEG_INFINITY,
+    let least = |a: &Assessed| {
+        a.least_ln_bayes_factor
+            .and_then(|_| closest(a, &equivalent))
+            .map_or(f64::NEG_INFINITY, |p| p.ln_bayes_factor)
     };
     let safe = designs
         .iter()

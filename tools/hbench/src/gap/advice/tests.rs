@@ -180,8 +180,10 @@ fn fitted(name: &str, score: f64) -> (f64, Fit) {
         params,
         values: Vec::new(),
         chi2: 0.0,
+        objective: 0.0,
         gap: 1.0,
         signal_gaps: Vec::new(),
+        record_chi2: Vec::new(),
     };
     (score, fit)
 }

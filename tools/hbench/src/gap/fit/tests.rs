@@ -283,8 +283,10 @@ pub(crate) fn ended_at(
         params: Params::default(),
         values,
         chi2: 1.0,
+        objective: 1.0,
         gap: 1.0,
         signal_gaps: Vec::new(),
+        record_chi2: Vec::new(),
     }
 }
 
@@ -446,4 +448,67 @@ fn a_fit_started_from_a_question_it_contains_ends_at_or_below_it() {
         at(&wider.params)
     );
     assert_eq!(at(&plain.params), at(&s.known), "the plain fit left it");
+}
+
+/// Two steps records of one bench, the position sensor swapped for a slower one between
+/// them (`holdout::tests::an_effect_one_record_alone_demands_is_refused`): the plain
+/// record sits at its noise under the known model, the delayed one far off. Each record
+/// weighs by its misfit (`Problem::weighed`): the plain one by its noise, the other by
+/// its gap. The joint delay then bends the plain record less than a fit of the pooled
+/// chi-square does, and ends lower on the likelihood with one variance per record,
+/// sum_r N_r ln chi2_r, which the weights approach. Measured: weights 0.164 and 1; the
+/// plain record's chi-square 8977 weighted against 19807 pooled, the delayed one's 34845
+/// against 19309.
+#[test]
+fn a_joint_fit_weighs_each_record_by_its_misfit() {
+    use crate::gap::blind::Setup;
+    use crate::gap::effects::candidate;
+    use crate::gap::hide::Kind;
+    use crate::gap::tests::record;
+    use crate::gap::variants::Simulator;
+
+    let delayed = Setup::new(Simulator::Rust, false, &[Effect::SensorDelay], 2);
+    let plain = Setup::new(Simulator::Rust, false, &[], 2);
+    let records = [
+        record(&delayed, Kind::Steps, 2),
+        record(&plain, Kind::Steps, 3),
+    ];
+    let target = crate::gap::target_of(&records).expect("a target");
+    let known = &plain.known;
+    let w = target.weights(known);
+    assert_eq!(w.len(), 2);
+    assert!(w[0] < 0.5 && w[1] == 1.0, "weights {w:?}");
+    let delay = candidate(Effect::SensorDelay).expect("a candidate");
+    let weighted = fit(&target, known, &delay, &[]);
+    // the same fit of the pooled chi-square, from the same start
+    let mut pooled = unweighed(&target, known, &delay, &[]);
+    pooled.at(pooled.coordinates_of(&weighted.params));
+    let (pooled, _) = optimiser(known.solver.rtol).minimize(pooled);
+    let pooled = ended(&pooled, &delay, &[]);
+    let profile = |f: &Fit| -> f64 {
+        f.record_chi2
+            .iter()
+            .zip(&target.records)
+            .map(|(c, r)| r.len() as f64 * c.ln())
+            .sum()
+    };
+    assert!(
+        profile(&weighted) < profile(&pooled),
+        "{} against {}",
+        profile(&weighted),
+        profile(&pooled)
+    );
+    eprintln!(
+        "weights {w:?}; chi2 by record {:?} weighted, {:?} pooled",
+        weighted.record_chi2, pooled.record_chi2
+    );
+    assert!(
+        weighted.record_chi2[1] < pooled.record_chi2[1],
+        "the plain record: {:?} weighted against {:?} pooled",
+        weighted.record_chi2,
+        pooled.record_chi2
+    );
+    // the noise-normalised figures are the records' own, the weights divided out
+    assert!((weighted.record_chi2.iter().sum::<f64>() / weighted.chi2 - 1.0).abs() < 1e-12);
+    assert!(weighted.objective < weighted.chi2);
 }

@@ -247,6 +247,7 @@ mod tests {
             decision: decision::Decision {
                 gap_before: 1.4,
                 effective_samples: 100.0,
+                misfit: Default::default(),
                 candidates: Vec::new(),
                 preference: None,
                 refused: Vec::new(),

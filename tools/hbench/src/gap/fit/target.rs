@@ -1,0 +1,196 @@
+//! The records as the fits see them: each record's compared samples against its noise,
+//! and the records of a joint analysis side by side (issue 14 item 3).
+
+use hbmodel::Params;
+use nalgebra::DVector;
+use rayon::prelude::*;
+use std::ops::Range;
+
+use super::super::data::{Experiment, Measured};
+use super::super::drive::simulate;
+use super::super::evidence;
+
+/// One record as the fits see it: measurement, experiment, noise per compared signal.
+pub struct Record<'a> {
+    pub measured: &'a Measured,
+    pub experiment: &'a Experiment,
+    /// (signal, noise standard deviation) of the compared signals present in the data.
+    pub noise: Vec<(&'static str, f64)>,
+    /// The samples compared, as ranges in time order (all of them but in a held-out
+    /// check, `holdout`): the whole record is simulated, its states carry through the
+    /// samples left out.
+    pub window: Vec<Range<usize>>,
+}
+
+/// One contiguous range of samples as a record's compared samples (`Record::window`).
+pub fn span(samples: Range<usize>) -> Vec<Range<usize>> {
+    std::iter::once(samples).collect()
+}
+
+impl<'a> Record<'a> {
+    /// The whole record.
+    pub fn new(
+        measured: &'a Measured,
+        experiment: &'a Experiment,
+        noise: Vec<(&'static str, f64)>,
+    ) -> Self {
+        let window = span(0..measured.time.len());
+        Record {
+            measured,
+            experiment,
+            noise,
+            window,
+        }
+    }
+
+    /// The same record compared on the samples of `window` only.
+    pub fn part(&self, window: Vec<Range<usize>>) -> Self {
+        Record {
+            window,
+            noise: self.noise.clone(),
+            ..*self
+        }
+    }
+
+    /// Samples per signal compared.
+    pub fn samples(&self) -> usize {
+        self.window.iter().map(ExactSizeIterator::len).sum()
+    }
+
+    /// Residual samples this record contributes.
+    pub fn len(&self) -> usize {
+        self.samples() * self.noise.len()
+    }
+
+    /// Append the record's noise-normalised residuals of `p`; None if the simulation fails.
+    fn residuals_into(&self, p: &Params, r: &mut Vec<f64>) -> Option<()> {
+        let sim = simulate(p, self.experiment, self.measured).ok()?;
+        for (name, sigma) in &self.noise {
+            let (m, s) = (self.measured.get(name)?, sim.get(name)?);
+            for w in &self.window {
+                let (m, s) = (m.get(w.clone())?, s.get(w.clone())?);
+                r.extend(m.iter().zip(s).map(|(m, s)| (s - m) / sigma));
+            }
+        }
+        Some(())
+    }
+}
+
+/// The data as the fits see it: one or several records (issue 14 item 3: a sweep and
+/// steps of the same bench), fitted jointly. Their normalised residuals are concatenated;
+/// a fit weighs each record by its misfit (`Problem::weighed`) and the evidence counts
+/// each record in its own variance (`evidence::Misfit`).
+pub struct Target<'a> {
+    pub records: Vec<Record<'a>>,
+}
+
+impl Target<'_> {
+    /// Noise-normalised residuals of a model, record after record and signal after
+    /// signal; None if a simulation fails.
+    pub fn residuals(&self, p: &Params) -> Option<DVector<f64>> {
+        // the records' simulations are independent (a sweep and steps side by side)
+        let parts: Vec<Vec<f64>> = self
+            .records
+            .par_iter()
+            .map(|record| {
+                let mut r = Vec::with_capacity(record.len());
+                record.residuals_into(p, &mut r).map(|()| r)
+            })
+            .collect::<Option<_>>()?;
+        let r = parts.concat();
+        r.iter()
+            .all(|x| x.is_finite())
+            .then(|| DVector::from_vec(r))
+    }
+
+    pub fn len(&self) -> usize {
+        self.records.iter().map(Record::len).sum()
+    }
+
+    /// Lengths of the residual's series, one per signal of each record: the residual's
+    /// correlation is estimated within each, never across a boundary.
+    pub fn blocks(&self) -> Vec<usize> {
+        self.records
+            .iter()
+            .flat_map(|r| r.noise.iter().map(|_| r.samples()))
+            .collect()
+    }
+
+    /// Each series' RMS in the residual `r` of `residuals`: each signal's gap, record after
+    /// record (`blocks`' order); empty when `r` is not such a residual.
+    pub fn block_gaps(&self, r: &DVector<f64>) -> Vec<f64> {
+        if r.len() != self.len() {
+            return Vec::new();
+        }
+        let mut at = 0;
+        self.blocks()
+            .into_iter()
+            .map(|n| {
+                let part = r.rows(at, n);
+                at += n;
+                (part.norm_squared() / n.max(1) as f64).sqrt()
+            })
+            .collect()
+    }
+
+    /// Each record's chi-square in the residual `r` of `residuals`; empty when `r` is not
+    /// such a residual.
+    pub fn record_chi2(&self, r: &DVector<f64>) -> Vec<f64> {
+        if r.len() != self.len() {
+            return Vec::new();
+        }
+        let mut at = 0;
+        self.records
+            .iter()
+            .map(|record| {
+                let part = r.rows(at, record.len());
+                at += record.len();
+                part.norm_squared()
+            })
+            .collect()
+    }
+
+    /// The misfit of `p` record by record (`evidence::Misfit`) and the residual's
+    /// correlation time over all records (N / N_eff); None if a simulation fails.
+    pub fn misfit(&self, p: &Params) -> Option<(evidence::Misfit, f64)> {
+        let r = self.residuals(p)?;
+        let mut at = 0;
+        let records = self
+            .records
+            .iter()
+            .map(|record| {
+                let part = &r.as_slice()[at..at + record.len()];
+                at += record.len();
+                let blocks = vec![record.samples(); record.noise.len()];
+                let chi2 = part.iter().map(|x| x * x).sum();
+                (chi2, evidence::effective_samples(part, &blocks).0)
+            })
+            .collect();
+        let misfit = evidence::Misfit { records };
+        let tau = r.len() as f64 / misfit.effective().max(f64::MIN_POSITIVE);
+        Some((misfit, tau))
+    }
+
+    /// Each record's weight in a joint fit from `p`, the model before it: one over the
+    /// record's gap there, at least its noise (`Problem::weights`). Empty (every weight 1)
+    /// for one record, or when `p` cannot be simulated.
+    pub(super) fn weights(&self, p: &Params) -> Vec<f64> {
+        if self.records.len() < 2 {
+            return Vec::new();
+        }
+        self.residuals(p).map_or_else(Vec::new, |r| {
+            self.record_chi2(&r)
+                .iter()
+                .zip(&self.records)
+                .map(|(chi2, record)| 1.0 / (chi2 / record.len().max(1) as f64).sqrt().max(1.0))
+                .collect()
+        })
+    }
+
+    /// RMS of the normalised residuals: 1 at the noise floor.
+    pub fn gap(&self, p: &Params) -> f64 {
+        self.residuals(p).map_or(f64::INFINITY, |r| {
+            (r.norm_squared() / r.len() as f64).sqrt()
+        })
+    }
+}
