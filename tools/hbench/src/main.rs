@@ -175,6 +175,12 @@ enum Command {
         /// report says what was left out. Item 7 of issue 14 asks for 60 s on two cores
         #[arg(long)]
         budget: Option<f64>,
+        /// How several records weigh against each other: `pooled` (one chi-square, each
+        /// sample against its record's noise) or `own` (each record's residual variance its
+        /// own: fits weigh each record by its misfit, scores sum each record's relative
+        /// drop; experimental, docs/gap.md session 58)
+        #[arg(long, value_enum, default_value_t = gap::fit::Variance::Pooled)]
+        record_variance: gap::fit::Variance,
     },
     /// Write measured-like data with hidden effects: the model with each named effect on at
     /// a random plausible magnitude, driven through an experiment and sampled like the bench
@@ -245,6 +251,12 @@ enum Command {
         /// steps --joint` asks whether two records do at least as well as each alone
         #[arg(long)]
         joint: bool,
+        /// How several records weigh against each other: `pooled` (one chi-square, each
+        /// sample against its record's noise) or `own` (each record's residual variance its
+        /// own: fits weigh each record by its misfit, scores sum each record's relative
+        /// drop; experimental, docs/gap.md session 58)
+        #[arg(long, value_enum, default_value_t = gap::fit::Variance::Pooled)]
+        record_variance: gap::fit::Variance,
         /// Put the experiment advice to the test: where the hidden effect was not named
         /// first, record the bench again under the design the workflow recommends and
         /// analyse that record alone (blind.md counts how often it then is)
@@ -377,6 +389,7 @@ fn main() -> ExitCode {
             rtol,
             max_effects,
             budget,
+            record_variance,
         } => gap::main(
             &data,
             &experiment,
@@ -388,6 +401,7 @@ fn main() -> ExitCode {
                 rtol,
                 max_effects,
                 budget,
+                variance: record_variance,
                 ..gap::Settings::default()
             },
             &between,
@@ -423,6 +437,7 @@ fn main() -> ExitCode {
             first_seed,
             pairs,
             joint,
+            record_variance,
             follow_advice,
             rtol,
             simulators,
@@ -447,6 +462,7 @@ fn main() -> ExitCode {
                     study: gap::Settings {
                         advise: follow_advice,
                         rtol,
+                        variance: record_variance,
                         ..gap::blind::study()
                     },
                     simulators: &simulators,

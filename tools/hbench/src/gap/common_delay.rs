@@ -149,6 +149,7 @@ mod tests {
         let (e, m) = measure_truth(&s.bench, Kind::Steps, &sp).expect("the bench runs");
         let target = Target {
             records: vec![Record::new(&m, &e, noise_levels(&m))],
+            variance: Default::default(),
         };
         let c = candidate(Effect::SensorDelay).expect("a candidate");
         let f = fit(&target, &s.known, &c, &[]);

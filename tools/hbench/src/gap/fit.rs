@@ -20,7 +20,7 @@ mod coordinate;
 mod screen;
 mod target;
 use coordinate::Coordinate;
-pub use target::{span, Record, Target};
+pub use target::{span, Record, Target, Variance};
 
 /// Residual value given to a simulation that fails: far worse than any fit, so the
 /// optimiser steps back, but finite.
@@ -193,9 +193,10 @@ pub struct Fit {
 }
 
 impl Fit {
-    /// Each record's chi-square, or the one chi-square when the fit kept none apart.
+    /// Each record's chi-square, or the one chi-square when the fit kept none apart
+    /// (pooled records, `Variance::Pooled`, or one record).
     pub fn by_record(&self) -> Vec<f64> {
-        if self.record_chi2.is_empty() {
+        if self.record_chi2.len() < 2 {
             vec![self.chi2]
         } else {
             self.record_chi2.clone()

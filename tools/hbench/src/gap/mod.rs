@@ -300,6 +300,8 @@ pub struct Settings {
     /// Wall seconds the run is held to (`budget`): no phase is started that the time
     /// left cannot hold. None: every phase runs.
     pub budget: Option<f64>,
+    /// How several records weigh against each other (`fit::Variance`).
+    pub variance: fit::Variance,
 }
 
 impl Default for Settings {
@@ -311,6 +313,7 @@ impl Default for Settings {
             rtol: RTOL,
             max_effects: MAX_STEPS,
             budget: None,
+            variance: fit::Variance::Pooled,
         }
     }
 }
@@ -331,7 +334,10 @@ fn target_of(records: &[Record]) -> Result<Target<'_>, String> {
     if parts.is_empty() {
         return Err("no record to analyse".into());
     }
-    Ok(Target { records: parts })
+    Ok(Target {
+        records: parts,
+        variance: fit::Variance::Pooled,
+    })
 }
 
 /// Run the workflow on one or several records fitted jointly.
@@ -344,7 +350,8 @@ pub fn run_with(start: &Params, records: &[Record], settings: Settings) -> Resul
     } = settings;
     let clock = budget::Clock::new(settings.budget);
     let start = &at_rtol(start, rtol);
-    let target = target_of(records)?;
+    let mut target = target_of(records)?;
+    target.variance = settings.variance;
     let initial_gap = clock.time(budget::FIRST, None, || target.gap(start));
     let names: Vec<String> = records.iter().map(|r| r.name.clone()).collect();
     let mut search = search::Search::new(&target, &names, start, within, progress);
@@ -444,6 +451,7 @@ fn describe_record(
     let after = simulate(model, e, m)?;
     let alone = Target {
         records: vec![fit::Record::new(m, e, noise.clone())],
+        variance: fit::Variance::Pooled,
     };
     Ok(RecordOutcome {
         name: r.name.clone(),
@@ -522,6 +530,14 @@ pub fn main(
         }
     }
     if !between.is_empty() {
+        if settings.variance != fit::Variance::Pooled {
+            // a decision scores its candidates as the run before it did, pooled
+            return Err(
+                "--record-variance applies to the workflow's run, not to a --between \
+                        decision, which pools its records"
+                    .into(),
+            );
+        }
         return decision::main(
             &start,
             between,

@@ -234,6 +234,7 @@ fn slow_moves_cannot_show_the_oils_compliance_but_show_friction() {
     let (experiment, measured) = measure(&known, Kind::Moves, 1).expect("the bench runs");
     let target = Target {
         records: vec![Record::new(&measured, &experiment, noise())],
+        variance: Default::default(),
     };
     let spots = unseen::blind_spots(&known, &target, 1.0);
     let names: Vec<&str> = spots.iter().map(|(n, _, _)| n.as_str()).collect();
@@ -264,6 +265,7 @@ fn a_chirp_at_the_thesis_supply_cannot_show_air_once_the_oil_is_refitted() {
     let (experiment, measured) = measure(&known, Kind::Chirp, 1).expect("the bench runs");
     let target = Target {
         records: vec![Record::new(&measured, &experiment, noise())],
+        variance: Default::default(),
     };
     let spots = unseen::blind_spots(&known, &target, 1.0);
     let names: Vec<&str> = spots.iter().map(|(n, _, _)| n.as_str()).collect();

@@ -189,6 +189,7 @@ pub(super) fn target_of(records: &[(Experiment, Measured)]) -> Target<'_> {
                 Record::new(m, x, sigmas)
             })
             .collect(),
+        variance: Default::default(),
     }
 }
 

@@ -78,10 +78,27 @@ impl<'a> Record<'a> {
 
 /// The data as the fits see it: one or several records (issue 14 item 3: a sweep and
 /// steps of the same bench), fitted jointly. Their normalised residuals are concatenated;
-/// a fit weighs each record by its misfit (`Problem::weighed`) and the evidence counts
-/// each record in its own variance (`evidence::Misfit`).
+/// how the records weigh against each other is `variance`.
 pub struct Target<'a> {
     pub records: Vec<Record<'a>>,
+    pub variance: Variance,
+}
+
+/// How a joint analysis weighs its records against each other (issue 14 item 3).
+#[derive(Debug, Clone, Copy, Default, PartialEq, Eq, clap::ValueEnum)]
+pub enum Variance {
+    /// One chi-square over all records, each sample against its own record's noise: a
+    /// record the model is further from weighs more.
+    #[default]
+    Pooled,
+    /// Each record's residual variance its own: a fit weighs each record by its misfit
+    /// under the model before it (`Problem::weighed`) and a candidate's score sums each
+    /// record's relative drop in its own independent samples (`evidence::Misfit`).
+    /// Measured in session 58 (docs/gap.md): on the Rust bench's steps + chirp (seed 2,
+    /// form error) it names the viscous friction the pooled analysis missed; on the
+    /// peer's (seed 1) it misses the manifold volume the pooled analysis names, at 4.5
+    /// times the cost. Not the default until a study says it is better.
+    Own,
 }
 
 impl Target<'_> {
@@ -135,9 +152,13 @@ impl Target<'_> {
 
     /// Each record's chi-square in the residual `r` of `residuals`; empty when `r` is not
     /// such a residual.
+    /// Pooled (`Variance::Pooled`), the one chi-square of all.
     pub fn record_chi2(&self, r: &DVector<f64>) -> Vec<f64> {
         if r.len() != self.len() {
             return Vec::new();
+        }
+        if self.variance == Variance::Pooled {
+            return vec![r.norm_squared()];
         }
         let mut at = 0;
         self.records
@@ -150,7 +171,8 @@ impl Target<'_> {
             .collect()
     }
 
-    /// The misfit of `p` record by record (`evidence::Misfit`) and the residual's
+    /// The misfit of `p` record by record (`evidence::Misfit`; pooled, one record of
+    /// them all) and the residual's
     /// correlation time over all records (N / N_eff); None if a simulation fails.
     pub fn misfit(&self, p: &Params) -> Option<(evidence::Misfit, f64)> {
         let r = self.residuals(p)?;
@@ -166,7 +188,10 @@ impl Target<'_> {
                 (chi2, evidence::effective_samples(part, &blocks).0)
             })
             .collect();
-        let misfit = evidence::Misfit { records };
+        let mut misfit = evidence::Misfit { records };
+        if self.variance == Variance::Pooled {
+            misfit.records = vec![(misfit.chi2(), misfit.effective())];
+        }
         let tau = r.len() as f64 / misfit.effective().max(f64::MIN_POSITIVE);
         Some((misfit, tau))
     }
@@ -175,7 +200,7 @@ impl Target<'_> {
     /// record's gap there, at least its noise (`Problem::weights`). Empty (every weight 1)
     /// for one record, or when `p` cannot be simulated.
     pub(super) fn weights(&self, p: &Params) -> Vec<f64> {
-        if self.records.len() < 2 {
+        if self.records.len() < 2 || self.variance == Variance::Pooled {
             return Vec::new();
         }
         self.residuals(p).map_or_else(Vec::new, |r| {

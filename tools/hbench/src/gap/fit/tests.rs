@@ -450,8 +450,8 @@ fn a_fit_started_from_a_question_it_contains_ends_at_or_below_it() {
     assert_eq!(at(&plain.params), at(&s.known), "the plain fit left it");
 }
 
-/// Two steps records of one bench, the position sensor swapped for a slower one between
-/// them (`holdout::tests::an_effect_one_record_alone_demands_is_refused`): the plain
+/// `--record-variance own`: two steps records of one bench, the position sensor swapped for
+/// a slower one between them (`holdout::tests::an_effect_one_record_alone_demands_is_refused`): the plain
 /// record sits at its noise under the known model, the delayed one far off. Each record
 /// weighs by its misfit (`Problem::weighed`): the plain one by its noise, the other by
 /// its gap. The joint delay then bends the plain record less than a fit of the pooled
@@ -473,8 +473,12 @@ fn a_joint_fit_weighs_each_record_by_its_misfit() {
         record(&delayed, Kind::Steps, 2),
         record(&plain, Kind::Steps, 3),
     ];
-    let target = crate::gap::target_of(&records).expect("a target");
+    let mut target = crate::gap::target_of(&records).expect("a target");
     let known = &plain.known;
+    // pooled, the default, weighs every sample against its noise alone
+    assert!(target.weights(known).is_empty());
+    assert_eq!(target.misfit(known).expect("simulates").0.records.len(), 1);
+    target.variance = Variance::Own;
     let w = target.weights(known);
     assert_eq!(w.len(), 2);
     assert!(w[0] < 0.5 && w[1] == 1.0, "weights {w:?}");

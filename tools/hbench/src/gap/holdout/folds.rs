@@ -157,6 +157,7 @@ pub fn folds<'a>(target: &'a Target<'a>, names: &[String]) -> Vec<Split<'a>> {
                         )
                     })
                     .collect(),
+                variance: target.variance,
             };
             let held_out = Target {
                 records: records
@@ -164,6 +165,7 @@ pub fn folds<'a>(target: &'a Target<'a>, names: &[String]) -> Vec<Split<'a>> {
                     .zip(&own)
                     .filter_map(|(r, o)| o.as_ref().map(|o| r.part(o[j].2.clone())))
                     .collect(),
+                variance: target.variance,
             };
             // the names of the records held out, each with its part of this fold
             let records: Vec<String> = own

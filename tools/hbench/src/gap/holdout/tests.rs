@@ -29,6 +29,7 @@ fn windows_of(kind: Kind) -> (usize, Windows) {
     let (e, m) = record(&s, kind, 1);
     let one = Target {
         records: vec![Record::new(&m, &e, noise_levels(&m))],
+        variance: Default::default(),
     };
     let windows = folds(&one, &[kind.name().to_string()])
         .iter()
@@ -67,6 +68,7 @@ fn folds_leave_out_each_part_once() {
             Record::new(&m, &e, noise_levels(&m)),
             Record::new(&m, &e, noise_levels(&m)),
         ],
+        variance: Default::default(),
     };
     let names = ["a".to_string(), "b".to_string()];
     let halves = ["second half", "first half"];
@@ -140,6 +142,7 @@ fn an_effect_one_record_alone_demands_is_refused() {
             Record::new(&m1, &e1, noise_levels(&m1)),
             Record::new(&m2, &e2, noise_levels(&m2)),
         ],
+        variance: Default::default(),
     };
     let delay = candidate(Effect::SensorDelay).expect("a candidate");
     let known = &plain.known;
