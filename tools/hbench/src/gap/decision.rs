@@ -34,10 +34,12 @@ pub struct Decision {
     /// Gap of the records under the model the question starts from, its recalibrations
     /// re-fitted on them.
     pub gap_before: f64,
-    /// Independent samples its residual is worth (N / tau).
-    pub effective_samples: f64,
-    /// Its residual record by record (`evidence::Misfit`), the candidates' scores' base.
-    #[serde(skip)]
+    /// Its residual record by record (`evidence::Misfit`), the candidates' scores' base;
+    /// written as the independent samples it is worth (N / tau, `effective_samples`).
+    #[serde(
+        rename = "effective_samples",
+        serialize_with = "Misfit::serialize_effective"
+    )]
     pub misfit: Misfit,
     /// Each candidate of the question, fitted on the records.
     pub candidates: Vec<Scored>,
@@ -51,6 +53,13 @@ pub struct Decision {
     /// The candidate the records prefer, if one pays its price.
     pub winner: Option<String>,
     pub verdict: String,
+}
+
+impl Decision {
+    /// Independent samples the residual under the question's model is worth (N / tau).
+    pub fn effective_samples(&self) -> f64 {
+        self.misfit.effective()
+    }
 }
 
 /// The candidate called `name` from `model`: an effect to add, or a recalibration within
@@ -156,26 +165,12 @@ pub struct Asked {
 }
 
 impl Asked {
-    /// The least chi-square among the candidates' fits.
-    pub fn best_chi2(&self) -> f64 {
-        self.fits
-            .iter()
-            .map(|f| f.chi2)
-            .fold(f64::INFINITY, f64::min)
-    }
-
-    /// The misfit of the fit of least chi-square (`best_chi2`), record by record, in the
+    /// The misfit of the fit of least chi-square, record by record, in the
     /// question model's independent samples: what a wider question is scored against.
     pub fn best_misfit(&self) -> Misfit {
         let best = self.fits.iter().min_by(|a, b| a.chi2.total_cmp(&b.chi2));
-        match best {
-            Some(f) if !self.decision.misfit.records.is_empty() => {
-                self.decision.misfit.with_chi2(&f.by_record())
-            }
-            _ => Misfit {
-                records: vec![(self.best_chi2(), self.decision.effective_samples)],
-            },
-        }
+        let chi2 = best.map_or_else(|| vec![f64::INFINITY], Fit::by_record);
+        self.decision.misfit.with_chi2(&chi2)
     }
 
     /// The fits that could be taken: off every narrow bound of their fit
@@ -320,7 +315,6 @@ pub fn ask(
         return Err("the question's model cannot be simulated under these records".into());
     }
     let (misfit, tau) = misfit(target, model, gap);
-    let effective = misfit.effective();
     let bar = crate::parallel::bar(candidates.len(), "deciding", progress);
     let fits = crate::parallel::map(&candidates, &bar, Candidate::name, |c| {
         let before = warm.and_then(|w| w.fits.iter().find(|f| f.name == c.name()));
@@ -361,7 +355,6 @@ pub fn ask(
     Ok(Asked {
         decision: Decision {
             gap_before: gap,
-            effective_samples: effective,
             misfit,
             candidates: scored,
             preference,
@@ -420,7 +413,7 @@ pub fn markdown(question: &[String], d: &Decision) -> String {
             .collect::<Vec<_>>()
             .join(", "),
         d.gap_before,
-        d.effective_samples
+        d.effective_samples()
     );
     for c in &d.candidates {
         let values: Vec<String> = c

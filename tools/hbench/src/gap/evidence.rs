@@ -70,6 +70,11 @@ impl Misfit {
         self.records.iter().map(|r| r.0).sum()
     }
 
+    /// Written as its independent samples: what a report reads of it.
+    pub fn serialize_effective<S: serde::Serializer>(&self, s: S) -> Result<S::Ok, S::Error> {
+        s.serialize_f64(self.effective())
+    }
+
     /// The same records' independent samples beside other chi-squares (a fit's, taken as
     /// the model before another).
     pub fn with_chi2(&self, chi2: &[f64]) -> Misfit {

@@ -20,7 +20,7 @@ mod coordinate;
 mod screen;
 mod target;
 use coordinate::Coordinate;
-pub use target::{span, Record, Target, Variance};
+pub use target::{chi2, span, Record, Target, Variance};
 
 /// Residual value given to a simulation that fails: far worse than any fit, so the
 /// optimiser steps back, but finite.

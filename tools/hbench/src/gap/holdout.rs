@@ -21,7 +21,7 @@ use serde::Serialize;
 use super::common_delay::{self, SensorSay};
 use super::effects::{Candidate, Fitted, StepKind};
 use super::evidence::{self, ADD_LN_BAYES, CLEAR_LN_BAYES};
-use super::fit::{fit, Fit, Target};
+use super::fit::{chi2, fit, Fit, Target};
 use super::NOISE_FLOOR_GAP;
 
 mod folds;
@@ -192,7 +192,7 @@ impl HeldOut {
             };
         };
         let misfit = |r: &[f64], blocks: &[usize]| {
-            let chi2: f64 = r.iter().map(|x| x * x).sum();
+            let chi2 = chi2(r);
             HeldOut {
                 gap: (chi2 / r.len().max(1) as f64).sqrt(),
                 chi2,
@@ -201,18 +201,10 @@ impl HeldOut {
             }
         };
         let mut whole = misfit(r.as_slice(), &left_out.blocks());
-        if left_out.records.len() > 1 {
-            // the residual holds the records one after the other (`Target::residuals`)
-            let mut at = 0;
-            whole.records = left_out
-                .records
-                .iter()
-                .map(|record| {
-                    let n = record.len();
-                    let blocks = vec![record.samples(); record.noise.len()];
-                    at += n;
-                    misfit(&r.as_slice()[at - n..at], &blocks)
-                })
+        if let Some(parts) = left_out.parts(r.as_slice()).filter(|p| p.len() > 1) {
+            whole.records = parts
+                .into_iter()
+                .map(|(record, part)| misfit(part, &record.blocks()))
                 .collect();
         }
         whole

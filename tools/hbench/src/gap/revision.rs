@@ -479,7 +479,7 @@ fn continue_with<'t>(mut s: Search<'t>, asked: &Asked) -> Search<'t> {
         &s.model,
         d.gap_before,
         d.candidates.clone(),
-        d.effective_samples,
+        d.effective_samples(),
         d.validation.clone(),
     );
     step.spread = fit::spread(s.target().0, winner, asked.tau);
@@ -516,7 +516,7 @@ fn take_refit(s: &mut Search, asked: &Asked) {
         return;
     };
     let d = &asked.decision;
-    let mut step = step_of(b, &s.model, s.gap, Vec::new(), d.effective_samples, None);
+    let mut step = step_of(b, &s.model, s.gap, Vec::new(), d.effective_samples(), None);
     step.name = format!(
         "{REFITTED}{}",
         b.candidate

@@ -62,6 +62,11 @@ impl<'a> Record<'a> {
         self.samples() * self.noise.len()
     }
 
+    /// Lengths of its residual's series, one per compared signal (`Target::blocks`).
+    pub fn blocks(&self) -> Vec<usize> {
+        vec![self.samples(); self.noise.len()]
+    }
+
     /// Append the record's noise-normalised residuals of `p`; None if the simulation fails.
     fn residuals_into(&self, p: &Params, r: &mut Vec<f64>) -> Option<()> {
         let sim = simulate(p, self.experiment, self.measured).ok()?;
@@ -127,10 +132,26 @@ impl Target<'_> {
     /// Lengths of the residual's series, one per signal of each record: the residual's
     /// correlation is estimated within each, never across a boundary.
     pub fn blocks(&self) -> Vec<usize> {
-        self.records
-            .iter()
-            .flat_map(|r| r.noise.iter().map(|_| r.samples()))
-            .collect()
+        self.records.iter().flat_map(Record::blocks).collect()
+    }
+
+    /// Each record beside its part of a residual `r` of `residuals` (records one after
+    /// the other); None when `r` is not such a residual.
+    pub fn parts<'r>(&self, r: &'r [f64]) -> Option<Vec<(&Record<'_>, &'r [f64])>> {
+        if r.len() != self.len() {
+            return None;
+        }
+        let mut rest = r;
+        Some(
+            self.records
+                .iter()
+                .map(|record| {
+                    let (part, after) = rest.split_at(record.len());
+                    rest = after;
+                    (record, part)
+                })
+                .collect(),
+        )
     }
 
     /// Each series' RMS in the residual `r` of `residuals`: each signal's gap, record after
@@ -154,21 +175,13 @@ impl Target<'_> {
     /// such a residual.
     /// Pooled (`Variance::Pooled`), the one chi-square of all.
     pub fn record_chi2(&self, r: &DVector<f64>) -> Vec<f64> {
-        if r.len() != self.len() {
+        let Some(parts) = self.parts(r.as_slice()) else {
             return Vec::new();
-        }
+        };
         if self.variance == Variance::Pooled {
             return vec![r.norm_squared()];
         }
-        let mut at = 0;
-        self.records
-            .iter()
-            .map(|record| {
-                let part = r.rows(at, record.len());
-                at += record.len();
-                part.norm_squared()
-            })
-            .collect()
+        parts.iter().map(|(_, part)| chi2(part)).collect()
     }
 
     /// The misfit of `p` record by record (`evidence::Misfit`; pooled, one record of
@@ -176,16 +189,12 @@ impl Target<'_> {
     /// correlation time over all records (N / N_eff); None if a simulation fails.
     pub fn misfit(&self, p: &Params) -> Option<(evidence::Misfit, f64)> {
         let r = self.residuals(p)?;
-        let mut at = 0;
         let records = self
-            .records
-            .iter()
-            .map(|record| {
-                let part = &r.as_slice()[at..at + record.len()];
-                at += record.len();
-                let blocks = vec![record.samples(); record.noise.len()];
-                let chi2 = part.iter().map(|x| x * x).sum();
-                (chi2, evidence::effective_samples(part, &blocks).0)
+            .parts(r.as_slice())?
+            .into_iter()
+            .map(|(record, part)| {
+                let effective = evidence::effective_samples(part, &record.blocks()).0;
+                (chi2(part), effective)
             })
             .collect();
         let mut misfit = evidence::Misfit { records };
@@ -218,4 +227,9 @@ impl Target<'_> {
             (r.norm_squared() / r.len() as f64).sqrt()
         })
     }
+}
+
+/// Sum of squares of normalised residuals.
+pub fn chi2(r: &[f64]) -> f64 {
+    r.iter().map(|x| x * x).sum()
 }

@@ -319,8 +319,8 @@ fn a_clear_step_is_asked_again_only_when_the_run_ends_far_above_the_floor_or_mov
 fn a_question_is_widened_only_by_a_recalibration_that_pays_its_price() {
     use std::cell::RefCell;
     let (s, between, plain) = delay_or_lag();
-    let chi2 = plain.best_chi2();
-    let effective = plain.decision.effective_samples;
+    let chi2 = plain.best_misfit().chi2();
+    let effective = plain.decision.effective_samples();
     let singles = decision::single_recalibrations(&s.known, 0.15);
     let open = decision::open(&s.known, 0.15, &singles, &between);
     assert!(open.len() >= 5, "{open:?}");
@@ -335,7 +335,7 @@ fn a_question_is_widened_only_by_a_recalibration_that_pays_its_price() {
         let (plain, asked) = (&plain, &asked);
         move |set: &[String], start: Start| -> Option<Asked> {
             assert!(
-                matches!(start, Start::Only(w) if w.best_chi2() == chi2),
+                matches!(start, Start::Only(w) if w.best_misfit().chi2() == chi2),
                 "started from the plain alone"
             );
             asked.borrow_mut().push(set.to_vec());
@@ -380,7 +380,7 @@ fn a_question_is_widened_only_by_a_recalibration_that_pays_its_price() {
         );
         let expected: Vec<String> = [held].into_iter().chain(kept).cloned().collect();
         assert_eq!(set, expected, "gains: {gains}, cleared: {cleared}");
-        assert!((a.best_chi2() / chi2 - factor).abs() < 1e-12);
+        assert!((a.best_misfit().chi2() / chi2 - factor).abs() < 1e-12);
         let calls = asked.take();
         assert_eq!(calls.len(), calls_made, "{calls:?}");
         assert!(calls

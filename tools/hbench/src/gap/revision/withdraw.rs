@@ -246,8 +246,10 @@ mod tests {
         let asked = |won: Option<usize>| Asked {
             decision: decision::Decision {
                 gap_before: 1.4,
-                effective_samples: 100.0,
-                misfit: Default::default(),
+                // one record, 100 samples each worth one, at the gap before
+                misfit: crate::gap::evidence::Misfit {
+                    records: vec![(1.4 * 1.4 * 100.0, 100.0)],
+                },
                 candidates: Vec::new(),
                 preference: None,
                 refused: Vec::new(),
