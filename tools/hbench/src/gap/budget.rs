@@ -18,7 +18,7 @@ use std::time::Instant;
 
 use serde::Serialize;
 
-use crate::bench::cpu::process_seconds;
+use crate::bench::cpu::{process_seconds, thread_seconds};
 
 /// The clock's name of the first simulation of the records (the starting model's gap):
 /// what one simulated second costs on this machine today.
@@ -44,23 +44,26 @@ pub const MARGIN: f64 = 2.1;
 /// one per recalibration open in `model` and per leading candidate's own parameter, at
 /// most one each), and every candidate effect and refit step simulated under the records
 /// (a record explained within its noise is searched for what it cannot show,
-/// `advice::unseen`), each simulated second at the cost the run's first simulation of
-/// `target` measured, on one core (measured before the refit: the advice of a record
-/// explained within its noise took 1.48 CPU s in 1.49 s of wall time). An upper bound
-/// when the advice is not needed.
+/// `advice::unseen`).
+///
+/// Each part is costed in CPU seconds of `model`, the model the advice starts from, on
+/// its own kind of drive (`Rates`), and turned into wall seconds by how many wall
+/// seconds each CPU second of the run's rounds took (`Clock::wall_per_cpu`): the rounds
+/// fit in parallel as the advice simulates in parallel, on a machine as busy. Before
+/// session 59 it read the wall time of the run's first simulation of the start model:
+/// one 14 ms sample, which a busy machine moved 1.9 times between two runs of the same
+/// record (0.0137 s, 0.0254 s) while its CPU time moved 1.5 % (0.01371, 0.01391), and
+/// a model the run had made stiffer (an added valve lag) cost 1.3 times that reading
+/// (session 57). An upper bound: on the four item-7 records (the Rust chirp, seed 1,
+/// form error; nothing, the dry friction, the manifold volume and the valve lag hidden),
+/// run beside other work, the advice took 0.36-0.59 of this estimate, where the first
+/// simulation's wall time had given 0.55-1.55 (the valve lag's the 1.55, session 59).
 pub fn advice_wall(clock: &Clock, target: &super::fit::Target, model: &hbmodel::Params) -> f64 {
-    let first = lock(&clock.phases)
-        .iter()
-        .find(|p| p.name == FIRST)
-        .map_or(0.0, |p| p.wall_s);
     let recorded: f64 = target
         .records
         .iter()
         .map(|r| r.measured.time.last().unwrap_or(&0.0) - r.measured.time.first().unwrap_or(&0.0))
         .sum();
-    if recorded <= 0.0 {
-        return 0.0;
-    }
     let designed: f64 = super::experiments::designs()
         .iter()
         .map(|d| d.duration)
@@ -69,7 +72,67 @@ pub fn advice_wall(clock: &Clock, target: &super::fit::Target, model: &hbmodel::
     let leading = (super::advice::LEADING_CANDIDATES + 1) as f64;
     let models = 2.0 * leading + refit;
     let candidates = hbmodel::Effect::ALL.len() as f64 + refit;
-    first / recorded * (designed * models + recorded * candidates)
+    let rates = Rates::of(target, model);
+    let cpu = rates.design * designed * models + rates.record * recorded * candidates;
+    cpu * clock.wall_per_cpu()
+}
+
+/// CPU seconds per simulated second of a model on one core: under the records' drive,
+/// and under the advice's designs. They differ: on the Rust chirp (seed 1, form error)
+/// with a valve lag added, a simulated second of the record cost 5.2 times the start
+/// model's, the advice as a whole about 2 times (session 59): the lag's fast pole is
+/// excited by the chirp's high frequencies far more than by the designs' sweeps and steps.
+struct Rates {
+    record: f64,
+    design: f64,
+}
+
+impl Rates {
+    /// `model`'s rates: its simulations of the records (read from when they ran,
+    /// `drive::simulation_cost`; run again if no longer kept, a few milliseconds each)
+    /// and one run under each kind's standard design, timed here: 6.15 of the designs'
+    /// 17.1 simulated seconds once, where the advice simulates them all under each of its
+    /// models (measured: 2 % of the advice's CPU time). 0 where the model cannot be
+    /// simulated.
+    fn of(target: &super::fit::Target, model: &hbmodel::Params) -> Rates {
+        let per_second = |runs: Vec<(Option<f64>, f64)>| {
+            let (cpu, simulated) = runs
+                .into_iter()
+                .filter_map(|(cpu, s)| Some((cpu?, s)))
+                .fold((0.0, 0.0), |(c, t), (cpu, s)| (c + cpu, t + s));
+            if simulated > 0.0 {
+                cpu / simulated
+            } else {
+                0.0
+            }
+        };
+        let record = per_second(
+            target
+                .records
+                .iter()
+                .map(|r| {
+                    let (t0, t1) = (r.measured.time.first(), r.measured.time.last());
+                    let duration = t1.zip(t0).map_or(0.0, |(t1, t0)| t1 - t0);
+                    (
+                        super::drive::simulation_cost(model, r.experiment, r.measured),
+                        duration,
+                    )
+                })
+                .collect(),
+        );
+        let design = per_second(
+            super::experiments::Kind::ALL
+                .iter()
+                .map(|&kind| {
+                    let d = super::experiments::Design::standard(kind);
+                    let cpu = thread_seconds();
+                    let ran = super::advice::simulate(model, &d).is_ok();
+                    (ran.then(|| thread_seconds() - cpu), d.duration)
+                })
+                .collect(),
+        );
+        Rates { record, design }
+    }
 }
 
 /// One phase of a run, timed.
@@ -146,6 +209,21 @@ impl Clock {
             .filter(|p| p.name.starts_with(ROUND))
             .map(|p| p.wall_s)
             .max_by(f64::total_cmp)
+    }
+
+    /// Wall seconds per CPU second of the run's rounds so far: below 1 where they ran in
+    /// parallel on a quiet machine, above where other work took the cores. 1 before any
+    /// round ran (one core, nothing beside).
+    pub fn wall_per_cpu(&self) -> f64 {
+        let (wall, cpu) = lock(&self.phases)
+            .iter()
+            .filter(|p| p.name.starts_with(ROUND))
+            .fold((0.0, 0.0), |(w, c), p| (w + p.wall_s, c + p.cpu_s));
+        if wall > 0.0 && cpu > 0.0 {
+            wall / cpu
+        } else {
+            1.0
+        }
     }
 
     /// Whether the phase `what`, which the run measured at `measure` wall seconds (the
@@ -300,5 +378,39 @@ mod tests {
         assert!(markdown(&t).contains("Left out to hold it"));
         assert!(check(Some(0.0)).is_err() && check(Some(f64::NAN)).is_err());
         assert!(check(Some(60.0)).is_ok() && check(None).is_ok());
+    }
+
+    /// The advice is costed on the model the run ended at, at the pace the run's rounds
+    /// kept: a valve lag the run added makes every simulation stiffer, and a machine where
+    /// a round's CPU second took several wall seconds makes every phase longer.
+    #[test]
+    fn the_advice_is_costed_on_the_model_it_starts_from_at_the_runs_pace() {
+        let s = Setup::new(Simulator::Rust, true, &[], 1);
+        let records = [crate::gap::tests::record(&s, Kind::Chirp, 1)];
+        let target = crate::gap::target_of(&records).expect("a target");
+        let mut lagged = s.known.clone();
+        lagged.effects.set(Effect::ValveDynamics, true);
+        let quiet = Clock::new(None);
+        assert_eq!(quiet.wall_per_cpu(), 1.0, "no round ran: one core");
+        let plain = advice_wall(&quiet, &target, &s.known);
+        let stiff = advice_wall(&quiet, &target, &lagged);
+        assert!(plain > 0.0 && plain.is_finite(), "{plain}");
+        assert!(
+            stiff > 1.2 * plain,
+            "with the lag {stiff} s, without {plain} s"
+        );
+        // a round whose CPU second took five wall seconds (its CPU time counts every
+        // thread of the process, so a test beside would blur a timed one)
+        let busy = Clock::new(None);
+        lock(&busy.phases).push(Phase {
+            name: "round 1".into(),
+            wall_s: 5.0,
+            cpu_s: 1.0,
+            expected_s: None,
+        });
+        let pace = busy.wall_per_cpu();
+        assert_eq!(pace, 5.0);
+        let waited = advice_wall(&busy, &target, &s.known);
+        assert!(waited > 2.0 * plain, "{waited} s at {pace}, {plain} s at 1");
     }
 }

@@ -82,7 +82,15 @@ pub fn run(
 /// The model under the measured experiment's drive, from the last simulations when it
 /// was run there a moment ago (`recent`).
 pub fn simulate(params: &Params, e: &Experiment, m: &Measured) -> Result<Traces, String> {
-    recent::simulated(params, e, m, || integrate(params, e, m))
+    recent::simulated(params, e, m, || integrate(params, e, m)).0
+}
+
+/// CPU seconds one integration of the model under the record costs on one core, read
+/// from when it ran (a kept simulation is answered at once, `recent`); None if the model
+/// cannot be simulated there.
+pub fn simulation_cost(params: &Params, e: &Experiment, m: &Measured) -> Option<f64> {
+    let (out, cost) = recent::simulated(params, e, m, || integrate(params, e, m));
+    out.ok().map(|_| cost)
 }
 
 fn integrate(params: &Params, e: &Experiment, m: &Measured) -> Result<Traces, String> {

@@ -375,9 +375,10 @@ pub fn run_with(start: &Params, records: &[Record], settings: Settings) -> Resul
         verdict,
         ..
     } = search;
-    let advice_cost = settings
-        .advise
-        .then(|| clock.admit("advice", Some(budget::advice_wall(&clock, &target, &model))));
+    let advice_cost = settings.advise.then(|| {
+        let expected = budget::advice_wall(&clock, &target, &model);
+        clock.admit("advice", Some(expected))
+    });
     let advice = match advice_cost {
         Some(Ok(expected)) => clock.time("advice", expected, || {
             advise(&model, (&steps, &rounds), gap, (&target, records), progress)

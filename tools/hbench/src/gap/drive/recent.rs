@@ -19,6 +19,8 @@ use std::hash::{Hash, Hasher};
 use std::sync::Mutex;
 
 use hbmodel::solver::adaptive_method;
+
+use crate::bench::cpu::thread_seconds;
 use hbmodel::Params;
 
 use super::super::data::{Experiment, Measured};
@@ -55,31 +57,37 @@ impl Key {
     }
 }
 
-type Kept = VecDeque<(Key, Result<Traces, String>)>;
+/// A kept simulation: its key, its answer and the CPU seconds its integration took.
+type Kept = VecDeque<(Key, Result<Traces, String>, f64)>;
 
 static RECENT: Mutex<Kept> = Mutex::new(VecDeque::new());
 
-/// The simulation of `params` under `e` and `m`: kept, or run by `simulate` and kept.
+/// The simulation of `params` under `e` and `m`: kept, or run by `simulate` and kept;
+/// beside it the CPU seconds of the calling thread its integration took when it ran (a
+/// kept answer costs nothing now, but a clock reading what the model costs needs what it
+/// cost then: `budget::advice_wall`).
 pub fn simulated(
     params: &Params,
     e: &Experiment,
     m: &Measured,
     simulate: impl FnOnce() -> Result<Traces, String>,
-) -> Result<Traces, String> {
+) -> (Result<Traces, String>, f64) {
     let key = Key::of(params, e, m);
     // a poisoned lock only means another thread panicked while holding it; the queue is
     // whole either way (every change is one push or pop)
     let lock = || RECENT.lock().unwrap_or_else(|p| p.into_inner());
-    if let Some((_, kept)) = lock().iter().find(|(k, _)| *k == key) {
-        return kept.clone();
+    if let Some((_, kept, cost)) = lock().iter().find(|(k, ..)| *k == key) {
+        return (kept.clone(), *cost);
     }
+    let cpu = thread_seconds();
     let out = simulate();
+    let cost = thread_seconds() - cpu;
     let mut kept = lock();
     if kept.len() >= KEPT {
         kept.pop_front();
     }
-    kept.push_back((key, out.clone()));
-    out
+    kept.push_back((key, out.clone(), cost));
+    (out, cost)
 }
 
 #[cfg(test)]
