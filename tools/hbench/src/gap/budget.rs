@@ -86,10 +86,10 @@ pub fn advice_wall(clock: &Clock, target: &super::fit::Target, model: &hbmodel::
 const ADVICE_SHARE: f64 = 0.6;
 
 /// CPU seconds per simulated second of a model on one core: under the records' drive,
-/// and under the advice's designs. They differ: on the Rust chirp (seed 1, form error)
-/// with a valve lag added, a simulated second of the record cost 5.2 times the start
-/// model's, the advice as a whole about 2 times (session 59): the lag's fast pole is
-/// excited by the chirp's high frequencies far more than by the designs' sweeps and steps.
+/// and under the advice's designs, which are not the records' (a user's record may be
+/// any drive). Measured on the four item-7 records (session 59): 0.0053-0.0066 under the
+/// chirp record and 0.0072-0.0080 under the designs without a valve lag, 0.0324 and
+/// 0.0328 with one; the advice's CPU time 2.7-2.9 s without, 10.5 s with.
 struct Rates {
     record: f64,
     design: f64,

@@ -102,7 +102,9 @@ pub enum Variance {
     /// Measured in session 58 (docs/gap.md): on the Rust bench's steps + chirp (seed 2,
     /// form error) it names the viscous friction the pooled analysis missed; on the
     /// peer's (seed 1) it misses the manifold volume the pooled analysis names, at 4.5
-    /// times the cost. Not the default until a study says it is better.
+    /// times the cost. Not the default until a study says it is better. Session 59: with
+    /// the fits unweighted the own scores name what the pooled ones do on three of the
+    /// four cases that differ; the weights make the gains and the losses.
     Own,
 }
 
