@@ -83,6 +83,14 @@ impl Measured {
         self.columns.get(name).map(Vec::as_slice)
     }
 
+    /// Time the record spans (s), first sample to last; 0 for an empty record.
+    pub fn duration(&self) -> f64 {
+        match (self.time.first(), self.time.last()) {
+            (Some(t0), Some(t1)) => t1 - t0,
+            _ => 0.0,
+        }
+    }
+
     /// Sampling period (s), from the first interval.
     pub fn period(&self) -> f64 {
         self.time[1] - self.time[0]
