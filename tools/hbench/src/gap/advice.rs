@@ -36,14 +36,15 @@ use super::fit::Fit;
 use super::hide::{raw, Truth};
 use super::{Step, NOISE_FLOOR_GAP};
 
+mod plan;
 mod recommendation;
 mod recorded;
 pub mod refit;
 mod validity;
 use nalgebra::DVector;
+pub use plan::{run, Plan};
 use recommendation::recommend;
 pub use recommendation::{markdown, recalibrate_option};
-use recorded::observed;
 use refit::{normalised, Refit};
 pub use validity::Simulated;
 use validity::{held_ripple, no_evidence, pressure_span};
@@ -240,59 +241,6 @@ pub fn leading(
                 .map(|(_, f)| (f.name.clone(), f.params.clone())),
         )
         .collect()
-}
-
-/// The advice after a run, when `needed`. The earliest contested step is asked first:
-/// what it chose shaped every later step, and the last round no longer holds the rival
-/// (a payload taken for the manifold's oil mass at the first step, Rust bench with form
-/// error, steps: the last round's question was which of the later small effects to add,
-/// and its advised moves named nothing, measured). Its two fits, from the model before
-/// that step, are the leading models. Without a contested step, the model as it stands
-/// and the last round's best. `recorded` are the designs the records were made under
-/// (`experiments::design_of`).
-pub fn after(
-    model: &Params,
-    steps: &[Step],
-    gap: f64,
-    rounds: &[Round],
-    noise: &[(&'static str, f64)],
-    recorded: &[Design],
-    progress: bool,
-) -> Option<Advice> {
-    if !needed(steps, gap) {
-        return None;
-    }
-    let designs = super::experiments::designs();
-    if let Some(u) = earliest_contested(steps, rounds) {
-        let round = &rounds[u.step];
-        let scale = Scale::new(u.tau, u.gap);
-        let mut assessed = assess(&u.from, &u.pair, noise, scale, &designs, progress);
-        recorded::read_at_records(&mut assessed, recorded, |a, b| {
-            observed(&round.fits, None, a, b)
-        });
-        let mut a = recommend(&u.from, &u.pair, scale, assessed);
-        a.question = format!(
-            "step {} could not tell `{}` from `{}`",
-            u.step + 1,
-            u.pair[0].0,
-            u.pair[1].0
-        );
-        return Some(a);
-    }
-    let last = rounds.last()?;
-    // a run cut by the limit took a step in its last round: that winner is the model as
-    // it stands (a run that ended on its own rejected every candidate of a last round)
-    let accepted = steps
-        .last()
-        .filter(|_| rounds.len() == steps.len())
-        .map(|s| s.name.as_str());
-    let leading = leading(model, &last.fits, accepted);
-    let scale = Scale::new(last.tau, gap);
-    let mut assessed = assess(model, &leading, noise, scale, &designs, progress);
-    recorded::read_at_records(&mut assessed, recorded, |a, b| {
-        observed(&last.fits, accepted, a, b)
-    });
-    Some(recommend(model, &leading, scale, assessed))
 }
 
 /// A step the record could not decide.

@@ -38,48 +38,60 @@ pub const CONTINUED: &str = "end question's round";
 /// parameters, and an added valve lag makes every simulation stiffer.
 pub const MARGIN: f64 = 2.1;
 
-/// Wall seconds the experiment advice is expected to take (`advice`), before the
-/// margin: every design simulated under each leading model (LEADING_CANDIDATES and the
-/// model as it stands) and under each step of the refit that reads them (`advice::refit`:
-/// one per recalibration open in `model` and per leading candidate's own parameter, at
-/// most one each), and every candidate effect and refit step simulated under the records
-/// (a record explained within its noise is searched for what it cannot show,
-/// `advice::unseen`).
+/// Wall seconds a part of the experiment advice is expected to take (`advice::run`),
+/// before the margin: `under_records` models simulated under the records (the search for
+/// blind spots, `advice::unseen`) and the models `under_designs` simulated under every
+/// design, each counted by the model whose cost it has (`advice::refit::Refit::costed`),
+/// as the advice's plan lists them (`advice::Plan`).
 ///
-/// Each part is costed in CPU seconds of `model`, the model the advice starts from, on
-/// its own kind of drive (`Rates`), and turned into wall seconds by how many wall
-/// seconds each CPU second of the run's rounds took (`Clock::wall_per_cpu`): the rounds
-/// fit in parallel as the advice simulates in parallel, on a machine as busy. Before
-/// session 59 it read the wall time of the run's first simulation of the start model:
-/// one 14 ms sample, which a busy machine moved 1.9 times between two runs of the same
-/// record (0.0137 s, 0.0254 s) while its CPU time moved 1.5 % (0.01371, 0.01391), and
-/// a model the run had made stiffer (an added valve lag) cost 1.3 times that reading
-/// (session 57). On the four item-7 records (the Rust chirp, seed 1, form error;
-/// nothing, the dry friction, the manifold volume and the valve lag hidden), run beside
-/// other work, the advice took 0.36-0.59 of the count (`ADVICE_SHARE`), where the first
-/// simulation's wall time had given 0.55-1.55 (the valve lag's the 1.55, session 59).
-pub fn advice_wall(clock: &Clock, target: &super::fit::Target, model: &hbmodel::Params) -> f64 {
+/// Each part is costed in CPU seconds on its own kind of drive (`Rates`), and turned into
+/// wall seconds by how many wall seconds each CPU second of the run's rounds took
+/// (`Clock::wall_per_cpu`): the rounds fit in parallel as the advice simulates in
+/// parallel, on a machine as busy. Under the records every model is costed at `model`'s
+/// rate, the model the advice starts from (which effects a search would switch on cost
+/// what they cost only once simulated: the search read 1.3-3.7 times its estimate, 0.2-0.3
+/// s, on the item-7 records, session 60). Under the designs each model is costed at
+/// `model`'s design rate times how much its own simulations of the records cost against
+/// `model`'s: one more simulation of the records per leading model, where the advice runs
+/// 17.1 s of designs under each.
+///
+/// History: before session 59 it read the wall time of the run's first simulation of the
+/// start model (one 14 ms sample, which a busy machine moved 1.9 times between two runs of
+/// the same record); until session 60 it counted three leading models and both of the
+/// advice's searches at `model`'s rate, times a share 0.6 calibrated on four records: on a
+/// run stopped after the manifold's volume, whose question held the passages' losses, the
+/// advice took 3.1 times that estimate with the margin (session 60).
+pub fn advice_wall(
+    clock: &Clock,
+    target: &super::fit::Target,
+    model: &hbmodel::Params,
+    under_records: usize,
+    under_designs: &[(hbmodel::Params, usize)],
+) -> f64 {
+    if under_records == 0 && under_designs.is_empty() {
+        return 0.0;
+    }
     let recorded: f64 = target.records.iter().map(|r| r.measured.duration()).sum();
     let designed: f64 = super::experiments::designs()
         .iter()
         .map(|d| d.duration)
         .sum();
-    let refit = super::advice::refit::Refit::new(model, &[]).models.len() as f64;
-    let leading = (super::advice::LEADING_CANDIDATES + 1) as f64;
-    let models = 2.0 * leading + refit;
-    let candidates = hbmodel::Effect::ALL.len() as f64 + refit;
     let rates = Rates::of(target, model);
-    let cpu = rates.design * designed * models + rates.record * recorded * candidates;
-    ADVICE_SHARE * cpu * clock.wall_per_cpu()
+    let designs: f64 = under_designs
+        .iter()
+        .map(|(p, n)| {
+            let own = Rates::record(target, p);
+            let relative = if own > 0.0 && rates.record > 0.0 {
+                own / rates.record
+            } else {
+                1.0
+            };
+            rates.design * relative * *n as f64
+        })
+        .sum();
+    let cpu = designs * designed + rates.record * recorded * under_records as f64;
+    cpu * clock.wall_per_cpu()
 }
-
-/// The share of `advice_wall`'s count the advice simulates. The count is an upper bound:
-/// both of the advice's searches (a question's designs, a record's unseen effects), each
-/// leading candidate's own parameter stepped. On the four item-7 records, run beside
-/// other work, the advice took 0.36-0.59 of the whole count's wall time (session 59):
-/// 0.6, above the largest, keeps the estimate at or above the measured cost there, and
-/// the budget's `MARGIN` covers a run the count reads less well.
-const ADVICE_SHARE: f64 = 0.6;
 
 /// CPU seconds per simulated second of a model on one core: under the records' drive,
 /// and under the advice's designs, which are not the records' (a user's record may be
@@ -99,27 +111,7 @@ impl Rates {
     /// models (measured: 2 % of the advice's CPU time). 0 where the model cannot be
     /// simulated.
     fn of(target: &super::fit::Target, model: &hbmodel::Params) -> Rates {
-        let per_second = |runs: Vec<(Option<f64>, f64)>| {
-            let (cpu, simulated) = runs
-                .into_iter()
-                .filter_map(|(cpu, s)| Some((cpu?, s)))
-                .fold((0.0, 0.0), |(c, t), (cpu, s)| (c + cpu, t + s));
-            if simulated > 0.0 {
-                cpu / simulated
-            } else {
-                0.0
-            }
-        };
-        let record = per_second(
-            target
-                .records
-                .iter()
-                .map(|r| {
-                    let cost = super::drive::simulation_cost(model, r.experiment, r.measured);
-                    (cost, r.measured.duration())
-                })
-                .collect(),
-        );
+        let record = Rates::record(target, model);
         let design = per_second(
             super::experiments::Kind::ALL
                 .iter()
@@ -133,12 +125,43 @@ impl Rates {
         );
         Rates { record, design }
     }
+
+    /// `model`'s rate under the records: its simulations of them, read from when they
+    /// ran (`drive::simulation_cost`; run again if no longer kept, a few milliseconds
+    /// each).
+    fn record(target: &super::fit::Target, model: &hbmodel::Params) -> f64 {
+        per_second(
+            target
+                .records
+                .iter()
+                .map(|r| {
+                    let cost = super::drive::simulation_cost(model, r.experiment, r.measured);
+                    (cost, r.measured.duration())
+                })
+                .collect(),
+        )
+    }
+}
+
+/// CPU seconds per simulated second of the runs (CPU seconds, None if it failed;
+/// simulated seconds) that ran; 0 if none did.
+fn per_second(runs: Vec<(Option<f64>, f64)>) -> f64 {
+    let (cpu, simulated) = runs
+        .into_iter()
+        .filter_map(|(cpu, s)| Some((cpu?, s)))
+        .fold((0.0, 0.0), |(c, t), (cpu, s)| (c + cpu, t + s));
+    if simulated > 0.0 {
+        cpu / simulated
+    } else {
+        0.0
+    }
 }
 
 /// One phase of a run, timed.
 #[derive(Debug, Clone, Serialize)]
 pub struct Phase {
-    /// "round 1", "end question", "advice", "records".
+    /// "round 1", "end question", "advice: blind spots" (the search for what records
+    /// explained within their noise cannot show, `advice::unseen`), "advice", "records".
     pub name: String,
     pub wall_s: f64,
     /// CPU seconds of every thread.
@@ -198,6 +221,13 @@ impl Clock {
         };
         lock(&self.phases).push(phase);
         out
+    }
+
+    /// Run `work` as the phase `name` if the time left holds `measure` (`admit`); None
+    /// when it was left out.
+    pub fn within<T>(&self, name: &str, measure: f64, work: impl FnOnce() -> T) -> Option<T> {
+        let expected = self.admit(name, Some(measure)).ok()?;
+        Some(self.time(name, expected, work))
     }
 
     /// The longest wall time of the search's rounds so far, if any ran: what the next
@@ -339,7 +369,7 @@ mod tests {
             .phases
             .iter()
             .map(|p| p.name.as_str())
-            .filter(|n| n.contains("round") || n.contains("question") || *n == "advice")
+            .filter(|n| n.contains("round") || n.contains("question") || n.starts_with("advice"))
             .collect();
         assert_eq!(rounds, ["round 1"], "{:?}", t.phases);
         assert!(
@@ -380,11 +410,12 @@ mod tests {
         assert!(check(Some(60.0)).is_ok() && check(None).is_ok());
     }
 
-    /// The advice is costed on the model the run ended at, at the pace the run's rounds
-    /// kept: a valve lag the run added makes every simulation stiffer, and a machine where
-    /// a round's CPU second took several wall seconds makes every phase longer.
+    /// The advice is costed on the models it simulates, at the pace the run's rounds kept:
+    /// a valve lag the run added, or one a question's model holds, makes every simulation
+    /// of it stiffer, and a machine where a round's CPU second took several wall seconds
+    /// makes every phase longer.
     #[test]
-    fn the_advice_is_costed_on_the_model_it_starts_from_at_the_runs_pace() {
+    fn the_advice_is_costed_on_the_models_it_simulates_at_the_runs_pace() {
         let s = Setup::new(Simulator::Rust, true, &[], 1);
         let records = [crate::gap::tests::record(&s, Kind::Chirp, 1)];
         let target = crate::gap::target_of(&records).expect("a target");
@@ -392,8 +423,8 @@ mod tests {
         lagged.effects.set(Effect::ValveDynamics, true);
         let quiet = Clock::new(None);
         assert_eq!(quiet.wall_per_cpu(), 1.0, "no round ran: one core");
-        let plain = advice_wall(&quiet, &target, &s.known);
-        let stiff = advice_wall(&quiet, &target, &lagged);
+        let plain = advice_wall(&quiet, &target, &s.known, 3, &[(s.known.clone(), 20)]);
+        let stiff = advice_wall(&quiet, &target, &lagged, 3, &[(lagged.clone(), 20)]);
         assert!(plain > 0.0 && plain.is_finite(), "{plain}");
         assert!(
             stiff > 1.2 * plain,
@@ -410,7 +441,14 @@ mod tests {
         });
         let pace = busy.wall_per_cpu();
         assert_eq!(pace, 5.0);
-        let waited = advice_wall(&busy, &target, &s.known);
+        let waited = advice_wall(&busy, &target, &s.known, 3, &[(s.known.clone(), 20)]);
         assert!(waited > 2.0 * plain, "{waited} s at {pace}, {plain} s at 1");
+        // from the plain model, a question whose models hold the lag costs as they do
+        let asked = advice_wall(&quiet, &target, &s.known, 0, &[(lagged.clone(), 20)]);
+        let plainly = advice_wall(&quiet, &target, &s.known, 0, &[(s.known.clone(), 20)]);
+        assert!(
+            asked > 1.2 * plainly,
+            "with the lag {asked} s, without {plainly} s"
+        );
     }
 }

@@ -375,20 +375,18 @@ pub fn run_with(start: &Params, records: &[Record], settings: Settings) -> Resul
         verdict,
         ..
     } = search;
-    let advice_cost = settings.advise.then(|| {
-        let expected = budget::advice_wall(&clock, &target, &model);
-        clock.admit("advice", Some(expected))
-    });
-    let advice = match advice_cost {
-        Some(Ok(expected)) => clock.time("advice", expected, || {
-            advise(&model, (&steps, &rounds), gap, (&target, records), progress)
-        }),
-        _ => None,
-    }
-    .map(|mut a| {
-        a.recalibrate = decision::open(&a.from, within, &recalibrated, &a.between);
-        a
-    });
+    let advice = settings
+        .advise
+        .then(|| {
+            let plan = advice::Plan::of(&model, &steps, gap, &rounds);
+            let run = (&rounds[..], gap);
+            advice::run(&clock, &model, &plan, run, (&target, records), progress)
+        })
+        .flatten()
+        .map(|mut a| {
+            a.recalibrate = decision::open(&a.from, within, &recalibrated, &a.between);
+            a
+        });
     let outcomes = clock.time("records", None, || {
         records
             .iter()
@@ -412,32 +410,6 @@ pub fn run_with(start: &Params, records: &[Record], settings: Settings) -> Resul
         revision: revision.map(|r| r.report),
         timing: clock.timing(),
     })
-}
-
-/// What to measure next after a run that ended at `model` and `gap` (`advice`): the
-/// question its steps and rounds left, or, explained within the noise, what the records
-/// could not have shown; a new record is read at the noise the first record shows.
-fn advise(
-    model: &Params,
-    (steps, rounds): (&[Step], &[advice::Round]),
-    gap: f64,
-    (target, records): (&Target, &[Record]),
-    progress: bool,
-) -> Option<advice::Advice> {
-    let noise = &target.records[0].noise;
-    let recorded: Vec<experiments::Design> = records
-        .iter()
-        .filter_map(|r| experiments::design_of(&r.experiment, &r.measured))
-        .collect();
-    if let Some(a) = advice::after(model, steps, gap, rounds, noise, &recorded, progress) {
-        return Some(a);
-    }
-    if gap > NOISE_FLOOR_GAP {
-        return None;
-    }
-    let tau = rounds.last().map_or(1.0, |r| r.tau);
-    let scale = advice::Scale::new(tau, gap);
-    advice::unseen::check(model, target, noise, scale, progress)
 }
 
 /// One record's gaps and localisation under the starting and the final model.

@@ -5,7 +5,9 @@ use hbmodel::Params;
 use super::super::blind::known_model;
 use super::super::experiments::{designs, Design, Kind};
 use super::super::Scored;
+use super::plan::Question;
 use super::recommendation::SAFE_LN_BAYES;
+use super::recorded::observed;
 use super::*;
 
 /// The advice between `leading`, no design recorded: the separations at the noise floor
@@ -217,8 +219,7 @@ fn the_advice_is_asked_when_the_record_leaves_the_leaders_undecided() {
         tau: 1.0,
         fits: round,
     }];
-    let none = after(&model, &[], 1.05, &rounds, &noise(), &[], false);
-    assert!(none.is_none());
+    assert!(Question::of(&model, &[], 1.05, &rounds).is_none());
 }
 
 /// On slow 7th-order moves of the known model, the oil's compliance hardly matters: the
@@ -274,7 +275,7 @@ fn a_chirp_at_the_thesis_supply_cannot_show_air_once_the_oil_is_refitted() {
 }
 
 /// A step taken against a rival within ln B 3 that paid its price.
-fn step(name: &str, scores: &[(&str, f64)]) -> Step {
+pub(super) fn step(name: &str, scores: &[(&str, f64)]) -> Step {
     let candidates: Vec<Scored> = scores.iter().map(|&(n, v)| scored(n, v)).collect();
     let ranked: Vec<(String, f64)> = scores.iter().map(|&(n, v)| (n.into(), v)).collect();
     Step {
@@ -294,17 +295,22 @@ fn step(name: &str, scores: &[(&str, f64)]) -> Step {
     }
 }
 
+/// A round from the default model whose candidates scored `names`, its residual's
+/// correlation time 2.
+pub(super) fn round(names: &[(&str, f64)]) -> Round {
+    Round {
+        start: Params::default(),
+        tau: 2.0,
+        fits: names.iter().map(|&(n, v)| fitted(n, v)).collect(),
+    }
+}
+
 /// The advice asks about the earliest step the record could not decide, with the two fits
 /// of that step's round: a later clear step does not hide it, a step whose rival did not
 /// pay its price is no question, and where a recalibration was taken over a close effect
 /// the effect is the rival.
 #[test]
 fn the_advice_asks_the_earliest_undecided_step() {
-    let round = |names: &[(&str, f64)]| Round {
-        start: Params::default(),
-        tau: 2.0,
-        fits: names.iter().map(|&(n, v)| fitted(n, v)).collect(),
-    };
     let first = [("inertia", 40.0), ("payload", 38.0), ("volume", 10.0)];
     let second = [("delay", 30.0), ("air", 5.0)];
     let steps = [step("inertia", &first), step("delay", &second)];

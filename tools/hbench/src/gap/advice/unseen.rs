@@ -14,6 +14,7 @@ use super::refit::Refit;
 use super::{assess, recommend, Advice, Scale};
 use crate::gap::evidence::CLEAR_LN_BAYES;
 use nalgebra::DVector;
+use rayon::prelude::*;
 
 /// `c` switched on in `model` (with what it requires) at the middle of each drawn
 /// parameter's plausible range (geometric for the log-scaled ones); the others at the
@@ -50,42 +51,74 @@ pub fn blind_spots(model: &Params, target: &Target, tau: f64) -> Vec<(String, Pa
     };
     // the recalibrations open in the model, read on the records (index 0 is the model)
     let refit = Refit::new(model, &[]);
-    let runs: Vec<Option<DVector<f64>>> =
-        refit.models.iter().map(|p| target.residuals(p)).collect();
-    effects::all()
-        .into_iter()
-        .filter(|c| c.kind == StepKind::Add && c.effect.is_some_and(|e| !model.has(e)))
-        .filter_map(|c| {
-            let p = at_plausible_middle(model, &c)?;
+    // each model's simulations are independent: side by side on the cores, as the
+    // advice's designs are (`assess`)
+    let runs: Vec<Option<DVector<f64>>> = refit
+        .models
+        .par_iter()
+        .map(|p| target.residuals(p))
+        .collect();
+    // rayon's collect keeps the candidates' order
+    missing(model)
+        .into_par_iter()
+        .filter_map(|(name, p)| {
             // residuals against the same data: their difference is what the effect changes
             let r = target.residuals(&p)?;
             let left = refit.refit_to(&r, &base, None, &[], &runs);
             let ln_b = left / (2.0 * tau.max(1.0));
-            Some((c.name(), p, ln_b))
+            Some((name, p, ln_b))
         })
         .filter(|(_, _, ln_b)| *ln_b < CLEAR_LN_BAYES)
         .collect()
 }
 
-/// The advice for a record explained within its noise: which design would show the
-/// effects it cannot (None when it could have shown every candidate).
+/// Each candidate effect not in `model`, switched on at its plausible middle.
+fn missing(model: &Params) -> Vec<(String, Params)> {
+    effects::all()
+        .into_iter()
+        .filter(|c| c.kind == StepKind::Add && c.effect.is_some_and(|e| !model.has(e)))
+        .filter_map(|c| Some((c.name(), at_plausible_middle(model, &c)?)))
+        .collect()
+}
+
+/// The models `blind_spots` simulates under the records: the model, the recalibrations'
+/// steps and every effect not in `model`.
+pub fn searched(model: &Params) -> usize {
+    Refit::new(model, &[]).models.len() + missing(model).len()
+}
+
+/// The leading models of `check`: the model as it stands and its blind spots.
+fn leading(model: &Params, spots: Vec<(String, Params, f64)>) -> Vec<(String, Params)> {
+    std::iter::once((super::AS_IS.to_string(), model.clone()))
+        .chain(spots.into_iter().map(|(n, p, _)| (n, p)))
+        .collect()
+}
+
+/// The models `check` simulates under every design (`assess`): the leading models and
+/// the steps of the refit that reads them, counted by the model whose cost each has
+/// (`Refit::costed`).
+pub fn models(model: &Params, spots: &[(String, Params, f64)]) -> Vec<(Params, usize)> {
+    let leading = leading(model, spots.to_vec());
+    Refit::new(model, &leading).costed(model, &leading)
+}
+
+/// The advice for a record explained within its noise: which design would show `spots`,
+/// the effects it cannot (`blind_spots`; None when there are none).
 pub fn check(
     model: &Params,
-    target: &Target,
+    spots: Vec<(String, Params, f64)>,
     noise: &[(&'static str, f64)],
     scale: Scale,
     progress: bool,
 ) -> Option<Advice> {
-    let unseen = blind_spots(model, target, scale.tau);
-    if unseen.is_empty() {
+    if spots.is_empty() {
         return None;
     }
-    let names: Vec<String> = unseen
+    let names: Vec<String> = spots
         .iter()
         .map(|(n, _, b)| format!("`{n}` (ln B {b:.1})"))
         .collect();
-    let mut leading = vec![(super::AS_IS.to_string(), model.clone())];
-    leading.extend(unseen.into_iter().map(|(n, p, _)| (n, p)));
+    let leading = leading(model, spots);
     // every pair: a record of the design is to show each effect against the model as it
     // stands (an analysis afresh) and to tell them apart (the decision between them,
     // `gap --between`); the pair between two unseen effects is no easier (the Rust moves,
