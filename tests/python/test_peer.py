@@ -196,6 +196,36 @@ def test_gas_release_keeps_the_chambers_above_vacuum(tmp_path, monkeypatch):
     assert lowest_p1() < 0.0, "without the release the oil would hold tension"
 
 
+def test_open_loop_rest_with_entrained_air_is_the_flows_balance(tmp_path):
+    """At rest under open-loop commands each chamber's flows balance, whatever the oil's
+    modulus. The variant is the blind study's peer chirp, seed 2, form error, with 0.23 %
+    of entrained air: its rest was solved on dP/dt, which the air's modulus (falling
+    towards P near vacuum, A.12) flattens far from the rest, and the solver stopped
+    ("not making good progress"; session 60). Air changes no flow, so the rest is the
+    air-free variant's."""
+    drive = tmp_path / "d.csv"
+    t = np.arange(10) * 1e-3
+    np.savetxt(drive, np.c_[t, 0 * t, 0 * t], delimiter=",", header="time,u1,u2", comments="")
+    variant = {
+        "actuator.dead_volume": 1.4410150960192129e-05,
+        "actuator.mass": 5.776113290100366,
+        "actuator.viscous_friction": 390.7173278879903,
+        "fluid.air_fraction": 0.002345190746762594,
+        "fluid.bulk_modulus": 1644002757.3836873,
+        "friction.viscous_bend": 0.05258729673180279,
+        "sensors.pressure_lag": 0.00031366547556218607,
+        "sv1.rated_flow": 0.0003200187799922534,
+        "sv2.rated_flow": 0.00030106772571951597,
+        "valve.edge_scale": 0.8604540990479047,
+    }
+    b, exp = _setup(["--drive", str(drive)], variant)
+    x = bench_peer.initial_state(b, exp)
+    free = dict(variant, **{"fluid.air_fraction": 0.0})
+    x_free = bench_peer.initial_state(*_setup(["--drive", str(drive)], free))
+    assert 50 * BAR < x[2] < 150 * BAR and 50 * BAR < x[3] < 150 * BAR
+    assert np.allclose(x[2:4], x_free[2:4], rtol=1e-9), (x[2:4], x_free[2:4])
+
+
 @pytest.mark.parametrize("bend", [-0.3, -0.255, -0.1, 0.0, 0.1, 0.3])
 def test_friction_only_dissipates_and_rises_with_speed(bend):
     """The form error's bent viscous law (variants.rs VISCOUS_BEND_RANGE, +-0.3) at any

@@ -87,6 +87,9 @@ pub enum Plan<'r> {
 }
 
 impl<'r> Plan<'r> {
+    /// The plan after a run that ended at `model` and `gap` with its `steps` and
+    /// `rounds`: as `run` will carry it out, read before it starts so that the budget
+    /// costs what it will simulate.
     pub fn of(model: &Params, steps: &'r [Step], gap: f64, rounds: &'r [Round]) -> Self {
         match Question::of(model, steps, gap, rounds) {
             Some(q) => Plan::Ask(Box::new(q)),
