@@ -1,143 +1,18 @@
 //! Where simulation and measurement disagree: per signal, per time window and per
 //! frequency band (frequency-response estimates of the measured and the simulated bench
-//! from the same input), and the noise floor of the data.
+//! from the same input); the noise floor the gaps are counted in is `noise`'s.
 
 use std::f64::consts::PI;
 use std::ops::Range;
 
-use rustfft::{num_complex::Complex, FftPlanner};
+use rustfft::num_complex::Complex;
 use serde::Serialize;
 
 use super::data::{Drive, Experiment, Measured};
 use super::drive::Traces;
 pub use super::oscillation::Oscillation;
 pub use super::resonance::Resonance;
-use super::resonance::{hann, resonances, spectra, COHERENCE, INPUT_POWER};
-
-/// Noise standard deviation of a sampled signal, estimated from the data alone by
-/// minimum statistics: white noise spreads its power evenly over all frequencies, while
-/// what the bench does (moves, sweeps, ringing resonances) fills only part of the band,
-/// so the lower fifth of the bins of a periodogram holds only noise.
-///
-/// Two passes over short Hann segments. First each segment's own estimate (its bins'
-/// order statistic against that of unit exponentials, the law of a white periodogram
-/// bin) and a low quantile over the segments give a rough level that holds as long as a
-/// quarter of the segments are quiet; segments far above it, where a transient such as a
-/// step's ringing fills the whole band, are set aside. Then the spectra of the others are
-/// averaged (Welch) and their lower fifth read as the noise, corrected for the
-/// chi-square spread of the averaged bins. Averaging every segment, transients included,
-/// read the 0.13 bar pressure noise of the steps experiment as 1.07 bar (measured).
-/// Segments whose converter is stuck (saturated sensor) carry no noise and are skipped.
-/// Floored at the quantisation noise.
-pub fn noise(x: &[f64], quantum: f64) -> f64 {
-    let floor = quantum / 12f64.sqrt();
-    let n = NOISE_SEGMENT;
-    if x.len() < 2 * n {
-        return floor;
-    }
-    let fft = FftPlanner::new().plan_fft_forward(n);
-    let hann = hann(n);
-    let w2: f64 = hann.iter().map(|w| w * w).sum();
-    // bins 1..n/2: the mean removal empties bin 0
-    let bins = n / 2 - 1;
-    let rank = (NOISE_QUANTILE * bins as f64) as usize;
-    let lower = |psd: &[f64]| {
-        let mut v = psd.to_vec();
-        v.select_nth_unstable_by(rank, f64::total_cmp);
-        v[rank]
-    };
-    let spectra: Vec<Vec<f64>> = x
-        .windows(n)
-        .step_by(n / 2)
-        .filter(|s| {
-            let stuck = s.windows(2).filter(|w| w[0] == w[1]).count();
-            stuck as f64 <= NOISE_STUCK_FRACTION * n as f64
-        })
-        .map(|s| {
-            let mean = s.iter().sum::<f64>() / n as f64;
-            let mut b: Vec<Complex<f64>> = s
-                .iter()
-                .zip(&hann)
-                .map(|(v, w)| Complex::new((v - mean) * w, 0.0))
-                .collect();
-            fft.process(&mut b);
-            b[1..=bins].iter().map(|c| c.norm_sqr() / w2).collect()
-        })
-        .collect();
-    if spectra.is_empty() {
-        return floor;
-    }
-    // pass 1: Renyi, the (rank+1)-th smallest of `bins` unit exponentials is a sum of
-    // independent exponentials of means 1/(bins-i), close to a gamma law
-    let expected: f64 = (0..=rank).map(|i| 1.0 / (bins - i) as f64).sum();
-    let variance: f64 = (0..=rank).map(|i| 1.0 / ((bins - i) as f64).powi(2)).sum();
-    let own: Vec<f64> = spectra.iter().map(|p| lower(p) / expected).collect();
-    let mut sorted = own.clone();
-    sorted.sort_by(f64::total_cmp);
-    let m = sorted.len();
-    let k = ((NOISE_SEGMENT_QUANTILE * (m + 1) as f64).round() as usize).clamp(1, m);
-    // the k-th smallest of m sits on average at quantile k/(m+1) of the segments' law
-    let rough =
-        sorted[k - 1] / gamma_quantile(k as f64 / (m + 1) as f64, expected.powi(2) / variance);
-    // pass 2: Welch over the quiet segments
-    let quiet: Vec<&Vec<f64>> = spectra
-        .iter()
-        .zip(&own)
-        .filter(|(_, e)| **e <= NOISE_TRANSIENT_RATIO * rough)
-        .map(|(p, _)| p)
-        .collect();
-    let mut psd = vec![0.0; bins];
-    for p in &quiet {
-        psd.iter_mut().zip(p.iter()).for_each(|(a, b)| *a += b);
-    }
-    psd.iter_mut().for_each(|a| *a /= quiet.len() as f64);
-    psd.sort_by(f64::total_cmp);
-    let q = psd[rank];
-    // chi2(nu)/nu with nu = 2 per segment less the Hann overlap's correlation (about
-    // 10 %), approximated by a gamma law of shape nu/2
-    let nu = 1.8 * quiet.len() as f64;
-    (q / gamma_quantile(NOISE_QUANTILE, nu / 2.0))
-        .sqrt()
-        .max(floor)
-}
-
-/// Segment of the noise estimate: 128 samples (0.128 s at 1 kHz), overlapping by half,
-/// gives 63 bins per segment and about 16 segments per second of data.
-const NOISE_SEGMENT: usize = 128;
-/// Quantile of the bins taken as noise-only.
-const NOISE_QUANTILE: f64 = 0.2;
-/// Quantile over the segments of the rough level: a quarter of them must be free of
-/// broadband transients (the steps experiment has two of about 50 ms in 0.65 s, which
-/// touch 4 of its 9 segments).
-const NOISE_SEGMENT_QUANTILE: f64 = 0.25;
-/// A segment whose own estimate exceeds the rough level by this factor (in variance) holds
-/// a transient: a quiet segment's estimate spreads by about 30 % (measured on white
-/// noise), so 3 lies several spreads above it.
-const NOISE_TRANSIENT_RATIO: f64 = 3.0;
-/// A segment in which more than this share of samples repeat the one before comes from a
-/// saturated converter (white noise of 0.13 bar repeats a 3 mbar step about 1 % of the
-/// time, the LVDT's 30 um a 4.6 um step about 4 %).
-const NOISE_STUCK_FRACTION: f64 = 0.25;
-
-/// Quantile p of a gamma law of mean 1 and shape `shape` (Wilson-Hilferty).
-fn gamma_quantile(p: f64, shape: f64) -> f64 {
-    let c = 1.0 / (9.0 * shape);
-    (1.0 - c + normal_quantile(p) * c.sqrt()).powi(3)
-}
-
-/// Standard normal quantile, Abramowitz and Stegun 26.2.23 (error below 4.5e-4).
-fn normal_quantile(p: f64) -> f64 {
-    let tail = |q: f64| {
-        let t = (-2.0 * q.ln()).sqrt();
-        t - (2.515517 + 0.802853 * t + 0.010328 * t * t)
-            / (1.0 + 1.432788 * t + 0.189269 * t * t + 0.001308 * t * t * t)
-    };
-    if p < 0.5 {
-        -tail(p)
-    } else {
-        tail(1.0 - p)
-    }
-}
+use super::resonance::{resonances, spectra, COHERENCE, INPUT_POWER};
 
 /// What the acquisition can read of each compared signal (SI): a simulated value beyond
 /// it is compared as the saturated converter would record it (the pressure sensors read
@@ -454,65 +329,4 @@ pub fn describe(l: &Localisation) -> Vec<String> {
         ));
     }
     s
-}
-
-#[cfg(test)]
-mod tests {
-    use super::*;
-    use rand::SeedableRng;
-    use rand_distr::{Distribution, Normal};
-
-    #[test]
-    fn noise_estimate_sees_through_fast_signals() {
-        let mut rng = rand_pcg::Pcg64::seed_from_u64(7);
-        let sigma = 0.13e5;
-        let n = Normal::new(0.0, sigma).unwrap();
-        // a pressure swinging 20 bar at up to 200 Hz over a log chirp, plus noise
-        let x: Vec<f64> = (0..2500)
-            .map(|k| {
-                let t = k as f64 * 1e-3;
-                let phase = 2.0 * PI * 2.0 * ((t * (100f64).ln() / 2.5).exp() - 1.0)
-                    / ((100f64).ln() / 2.5);
-                100e5 + 20e5 * phase.sin() + n.sample(&mut rng)
-            })
-            .collect();
-        let est = noise(&x, quantum("P1"));
-        assert!((est / sigma - 1.0).abs() < 0.1, "{est} against {sigma}");
-        // white noise alone, and a slow signal with it
-        let white: Vec<f64> = (0..2500).map(|_| n.sample(&mut rng)).collect();
-        let est = noise(&white, quantum("P1"));
-        assert!(
-            (est / sigma - 1.0).abs() < 0.1,
-            "white: {est} against {sigma}"
-        );
-    }
-
-    #[test]
-    fn noise_estimate_sees_through_ringing_transients() {
-        // the steps experiment: a quiet pressure with two 50 ms bursts ringing at 300 Hz,
-        // 5 bar, that fill every bin of the segments they touch
-        let mut rng = rand_pcg::Pcg64::seed_from_u64(8);
-        let sigma = 0.13e5;
-        let n = Normal::new(0.0, sigma).unwrap();
-        let x: Vec<f64> = (0..650)
-            .map(|k| {
-                let t = k as f64 * 1e-3;
-                let burst = |t0: f64| {
-                    if t >= t0 {
-                        7e5 * (-(t - t0) / 0.01).exp() * (2.0 * PI * 300.0 * (t - t0)).sin()
-                    } else {
-                        0.0
-                    }
-                };
-                106e5 + burst(0.05) + burst(0.35) + n.sample(&mut rng)
-            })
-            .collect();
-        let est = noise(&x, quantum("P1"));
-        assert!((est / sigma - 1.0).abs() < 0.15, "{est} against {sigma}");
-        // a saturated stretch carries no noise and is not read as quiet
-        let mut y = x.clone();
-        y[100..400].iter_mut().for_each(|v| *v = 206e5);
-        let est = noise(&y, quantum("P1"));
-        assert!((est / sigma - 1.0).abs() < 0.15, "saturated: {est}");
-    }
 }

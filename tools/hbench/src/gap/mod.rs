@@ -25,6 +25,7 @@ pub mod experiments;
 pub mod fit;
 pub mod hide;
 pub mod holdout;
+pub mod noise;
 pub mod oscillation;
 pub mod peer;
 pub mod recalibrate;
@@ -44,11 +45,12 @@ use std::path::{Path, PathBuf};
 use hbmodel::Params;
 use serde::Serialize;
 
-use analysis::{localise, noise, quantum, Localisation};
+use analysis::{localise, quantum, Localisation};
 pub use data::{load_records, Record};
 use data::{Experiment, Measured, COMPARED};
 use drive::{simulate, Traces};
 use fit::{Fit, Target};
+use noise::noise;
 
 /// A gap at or below this is reported as the noise floor: the noise estimate itself is
 /// uncertain by a few percent. The candidates are still tried there: an effect that is
