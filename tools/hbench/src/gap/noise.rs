@@ -109,10 +109,9 @@ fn readings(x: &[f64]) -> Option<Readings> {
     let mut sorted = own.clone();
     sorted.sort_by(f64::total_cmp);
     let m = sorted.len();
+    let shape = expected.powi(2) / variance;
     let k = ((NOISE_SEGMENT_QUANTILE * (m + 1) as f64).round() as usize).clamp(1, m);
-    // the k-th smallest of m sits on average at quantile k/(m+1) of the segments' law
-    let rough =
-        sorted[k - 1] / gamma_quantile(k as f64 / (m + 1) as f64, expected.powi(2) / variance);
+    let rough = rank_read(&sorted, k - 1, shape);
     // pass 2: Welch over the quiet segments
     let quiet: Vec<&Vec<f64>> = spectra
         .iter()
@@ -132,7 +131,7 @@ fn readings(x: &[f64]) -> Option<Readings> {
     let nu = 1.8 * quiet.len() as f64;
     Some(Readings {
         welch: q / gamma_quantile(NOISE_QUANTILE, nu / 2.0),
-        segments: segments_estimate(&sorted, expected.powi(2) / variance),
+        segments: segments_estimate(&sorted, shape),
         count: m,
     })
 }
@@ -145,12 +144,13 @@ fn readings(x: &[f64]) -> Option<Readings> {
 fn segments_estimate(sorted: &[f64], shape: f64) -> f64 {
     let m = sorted.len();
     let lower = ((NOISE_SEGMENTS_LOWER * m as f64) as usize).clamp(1, m);
-    sorted[..lower]
-        .iter()
-        .enumerate()
-        .map(|(i, v)| v / gamma_quantile((i + 1) as f64 / (m + 1) as f64, shape))
-        .sum::<f64>()
-        / lower as f64
+    (0..lower).map(|i| rank_read(sorted, i, shape)).sum::<f64>() / lower as f64
+}
+
+/// The variance read from `sorted[i]`, the (i+1)-th smallest of the m segments'
+/// estimates: on average it sits at quantile (i+1)/(m+1) of their gamma law of `shape`.
+fn rank_read(sorted: &[f64], i: usize, shape: f64) -> f64 {
+    sorted[i] / gamma_quantile((i + 1) as f64 / (sorted.len() + 1) as f64, shape)
 }
 
 /// Segment of the noise estimate: 128 samples (0.128 s at 1 kHz), overlapping by half,
