@@ -37,7 +37,8 @@
 //! not fitted on, or takes no candidate and fits it onto a physical bound of its own
 //! parameters, and names no rival clearly, the run is continued from that step without
 //! it (`withdraw`): the check the step passed with what the run knew then fails
-//! with what the run learned later.
+//! with what the run learned later. A choice withdrawn at a bound alone stays when the
+//! run without it ends far worse (`withdraw::FAR_WORSE_RATIO`).
 //! A question asked after another (held or widened) starts each fit from the other's fit
 //! of the same candidate as well as cold, and keeps the lower end (`fit::fit_warm`): the
 //! answer must not depend on the basin a cold start found. Whatever the answer, the
@@ -282,10 +283,11 @@ fn ask_again<'t>(
             report.verdict = withdraw::verdict(&report, &w, (continued.gap, run.gap), ln_b);
             report.continued = Some(Path::of(&continued));
             report.ln_bayes_factor = Some(ln_b);
-            report.revised = true;
+            let kept = !withdraw::far_worse(&w, continued.gap, run.gap);
+            report.revised = kept;
             return Some(Reasked {
                 report,
-                kept: Some(continued),
+                kept: kept.then_some(continued),
             });
         }
         let bound = outfitted(&asked).map_or(String::new(), |(name, gap, path)| {
