@@ -280,10 +280,10 @@ fn ask_again<'t>(
     if !clear_for_rival {
         if let Some(w) = withdraw::withdrawal(step, &asked) {
             let (continued, ln_b) = withdraw::continue_without(run, earlier, &asked, &w);
-            report.verdict = withdraw::verdict(&report, &w, (continued.gap, run.gap), ln_b);
+            let kept = !withdraw::far_worse(&w, continued.gap, run.gap);
+            report.verdict = withdraw::verdict(&report, &w, ((continued.gap, run.gap), ln_b), kept);
             report.continued = Some(Path::of(&continued));
             report.ln_bayes_factor = Some(ln_b);
-            let kept = !withdraw::far_worse(&w, continued.gap, run.gap);
             report.revised = kept;
             return Some(Reasked {
                 report,

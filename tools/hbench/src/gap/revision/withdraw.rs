@@ -153,8 +153,13 @@ pub fn continue_without<'t>(
 
 /// The report's words: the question, why its choice was withdrawn (a refusal's held-out
 /// folds, or the bound), and the two ends (`gaps`: the continued run's, the original's):
-/// the continued run reported, or the original standing (`far_worse`).
-pub fn verdict(r: &Revision, withdrawn: &Withdrawal, gaps: (f64, f64), ln_b: f64) -> String {
+/// the continued run reported (`kept`), or the original standing (`far_worse`).
+pub fn verdict(
+    r: &Revision,
+    withdrawn: &Withdrawal,
+    (gaps, ln_b): ((f64, f64), f64),
+    kept: bool,
+) -> String {
     let (effect, why) = match withdrawn {
         Withdrawal::Refused(v) => {
             let folds: Vec<String> = v
@@ -180,7 +185,7 @@ pub fn verdict(r: &Revision, withdrawn: &Withdrawal, gaps: (f64, f64), ln_b: f64
             ),
         ),
     };
-    let end = if far_worse(withdrawn, gaps.0, gaps.1) {
+    let end = if !kept {
         format!(
             "more than {FAR_WORSE_RATIO} times the original's gap: a bound says the data ask \
              more of it, not that it is absent, and the original run stands"
