@@ -115,9 +115,8 @@ pub fn measure_under(
 /// period, which the bench's smooth signals are not: it leads by up to half a sample, so
 /// a drawn tau acts as PERIOD a / (1 - a), a = exp(-PERIOD / tau) (0.13 ms for 0.46 ms;
 /// the sweep's y -> P1 - P2 lags 4.3 deg at 100 Hz where 0.46 ms gives 16.1, measured
-/// in session 63). The fix, judged against the peer's ODE lags, is on branch
-/// `sensor-lag-fix`; four tests measured on this lag must be measured again before it
-/// lands (docs/gap.md, session 63).
+/// in session 63). A fix judged against the peer's ODE lags is measured in docs/gap.md
+/// (session 63); four tests measured on this lag must be measured again before it lands.
 fn lag_weight(tau: f64) -> f64 {
     if tau > 0.0 {
         1.0 - (-PERIOD / tau).exp()

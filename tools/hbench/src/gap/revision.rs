@@ -281,7 +281,7 @@ fn ask_again<'t>(
         if let Some(w) = withdraw::withdrawal(step, &asked) {
             let (continued, ln_b) = withdraw::continue_without(run, earlier, &asked, &w);
             let kept = !withdraw::far_worse(&w, continued.gap, run.gap);
-            report.verdict = withdraw::verdict(&report, &w, ((continued.gap, run.gap), ln_b), kept);
+            report.verdict = withdraw::verdict(&report, &w, (continued.gap, run.gap), ln_b, kept);
             report.continued = Some(Path::of(&continued));
             report.ln_bayes_factor = Some(ln_b);
             report.revised = kept;

@@ -157,7 +157,8 @@ pub fn continue_without<'t>(
 pub fn verdict(
     r: &Revision,
     withdrawn: &Withdrawal,
-    (gaps, ln_b): ((f64, f64), f64),
+    gaps: (f64, f64),
+    ln_b: f64,
     kept: bool,
 ) -> String {
     let (effect, why) = match withdrawn {
