@@ -46,7 +46,28 @@ pub fn run(
     period: f64,
     hold: &dyn Fn(&Measurement) -> [f64; 2],
     command: &mut dyn FnMut(usize, &Measurement) -> [f64; 2],
-) -> Result<Vec<(Measurement, [f64; 2])>, String> {
+) -> Result<Sampled, String> {
+    Ok(run_finely(params, experiment, n, period, 1, hold, command)?.0)
+}
+
+/// What was sensed and applied at each sample.
+pub type Sampled = Vec<(Measurement, [f64; 2])>;
+
+/// What the sensors face between the samples: (time from sample 0, outputs).
+pub type Fine = Vec<(f64, Measurement)>;
+
+/// `run`, with the bench's outputs besides recorded `substeps` times in each period
+/// (time from the record's first sample, what the sensors face; the next sample's
+/// instant ends each period): what a sensor with its own dynamics integrates between the samples.
+pub fn run_finely(
+    params: &Params,
+    experiment: &Experiment,
+    n: usize,
+    period: f64,
+    substeps: usize,
+    hold: &dyn Fn(&Measurement) -> [f64; 2],
+    command: &mut dyn FnMut(usize, &Measurement) -> [f64; 2],
+) -> Result<(Sampled, Fine), String> {
     let mut p = params.clone();
     experiment.apply(&mut p);
     let mut sim = Simulation::new(&p).map_err(|e| e.to_string())?;
@@ -54,6 +75,10 @@ pub fn run(
         period,
         substeps: 1,
         computation_delay: 0.0,
+    };
+    let fine = Timing {
+        substeps: substeps.max(1),
+        ..timing
     };
     let limit = |u: [f64; 2]| u.map(|u| u.clamp(-COMMAND_LIMIT, COMMAND_LIMIT));
     let settle = (SETTLE / period).round() * period;
@@ -68,15 +93,19 @@ pub fn run(
         out.push((*sensed, u));
         u
     };
-    run_loop(
+    let trace = run_loop(
         &mut sim,
         &mut decide,
         &|_| 0.0,
         t0 + n as f64 * period,
-        &timing,
+        &fine,
     )
     .map_err(|e| format!("simulation failed: {e}"))?;
-    Ok(out)
+    let trace = trace
+        .iter()
+        .map(|s| (s.t - t0, Measurement::of(&s.out)))
+        .collect();
+    Ok((out, trace))
 }
 
 /// The model under the measured experiment's drive, from the last simulations when it

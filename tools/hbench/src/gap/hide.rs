@@ -7,7 +7,7 @@
 
 use std::path::Path;
 
-use hbmodel::control::COMMAND_LIMIT;
+use hbmodel::control::{Measurement, COMMAND_LIMIT};
 use hbmodel::effects::Effect;
 use hbmodel::sensors::{Channel, Sensor, SensorParams};
 use hbmodel::Params;
@@ -18,13 +18,14 @@ use serde_json::json;
 use std::collections::BTreeMap;
 
 use super::data::{Drive, Experiment, Measured};
-use super::drive::run;
+use super::drive::run_finely;
 use super::effects::{candidate, Candidate};
 use super::peer;
 use super::variants::{describe, peer_variant, section_4_4, FormError, Simulator};
 
 pub use super::experiments::Kind;
 use super::experiments::{Design, PERIOD};
+use super::sensor_lag::{lagged, SampledLag, FINE_STEPS};
 
 /// A plausible magnitude of each parameter the effect's fit adjusts and `hide` draws
 /// (`Fitted::drawn`). One not drawn takes no number from `rng`, so every case's draws
@@ -110,21 +111,6 @@ pub fn measure_under(
     measure_design(&Truth::rust(truth.clone()), design, &sp)
 }
 
-/// Weight of the new sample in a first-order lag of time constant `tau` sampled every
-/// PERIOD; 1 without lag. Exact only for an input held at its new value over the whole
-/// period, which the bench's smooth signals are not: it leads by up to half a sample, so
-/// a drawn tau acts as PERIOD a / (1 - a), a = exp(-PERIOD / tau) (0.13 ms for 0.46 ms;
-/// the sweep's y -> P1 - P2 lags 4.3 deg at 100 Hz where 0.46 ms gives 16.1, measured
-/// in session 63). A fix judged against the peer's ODE lags is measured in docs/gap.md
-/// (session 63); four tests measured on this lag must be measured again before it lands.
-fn lag_weight(tau: f64) -> f64 {
-    if tau > 0.0 {
-        1.0 - (-PERIOD / tau).exp()
-    } else {
-        1.0
-    }
-}
-
 /// Noise-free samples of the bench under the experiment: per sample [reference or
 /// command, y, P1, P2, u1] as the sensors deliver them (after their lags) and as applied.
 pub fn raw(truth: &Truth, design: &Design) -> Result<(Experiment, Vec<[f64; 5]>), String> {
@@ -140,10 +126,12 @@ pub fn raw(truth: &Truth, design: &Design) -> Result<(Experiment, Vec<[f64; 5]>)
         Drive::Proportional { kp, .. } => Some(*kp),
         Drive::OpenLoop => None,
     };
-    let (wy, wp) = (
-        lag_weight(truth.form.lvdt_lag),
-        lag_weight(truth.form.pressure_lag),
-    );
+    // the LVDT's lag acts in the loop (the loop acts on the lagged LVDT, as on a bench
+    // whose LVDT conditioner filters), over the sample period; the pressures' lag acts on
+    // nothing the loop reads and is run afterwards on the finely recorded pressures
+    let ly = SampledLag::new(truth.form.lvdt_lag, PERIOD);
+    let tau_p = truth.form.pressure_lag;
+    let mut before: Option<f64> = None;
     let mut rows: Vec<[f64; 5]> = Vec::with_capacity(n);
     // the bench rests at the first sample's command before the record starts (the lags
     // start from the first sample they see)
@@ -155,32 +143,52 @@ pub fn raw(truth: &Truth, design: &Design) -> Result<(Experiment, Vec<[f64; 5]>)
         };
         [u, -u]
     };
-    run(&truth.params, &experiment, n, PERIOD, &hold, &mut |k, s| {
-        // the sensors' lags: the loop acts on the lagged LVDT, as on a bench whose LVDT
-        // conditioner filters
-        let lag = |prev: f64, now: f64, w: f64| {
-            if w < 1.0 {
-                prev + w * (now - prev)
-            } else {
-                now
+    let substeps = if tau_p > 0.0 { FINE_STEPS } else { 1 };
+    let (_, fine) = run_finely(
+        &truth.params,
+        &experiment,
+        n,
+        PERIOD,
+        substeps,
+        &hold,
+        &mut |k, s| {
+            let y = match (rows.last(), before) {
+                (Some(&[_, y, ..]), Some(by)) => ly.step(y, by, s.y),
+                _ => s.y,
+            };
+            before = Some(s.y);
+            let r = signal[k];
+            // The controller acts on the sample before the recording's noise: on the bench
+            // the same LVDT feeds both, but noise fed back excites the nearly undamped
+            // oil-column resonance of a model without friction and leakage (30 bar RMS in
+            // P1 on the sweep, measured), a random disturbance no deterministic model can
+            // reproduce.
+            let u = match kp {
+                Some(kp) => (kp * (r - y)).clamp(-COMMAND_LIMIT, COMMAND_LIMIT),
+                None => r,
+            };
+            rows.push([r, y, s.p1, s.p2, u]);
+            [u, -u]
+        },
+    )?;
+    if tau_p > 0.0 && !rows.is_empty() {
+        let p = &truth.params;
+        let delay = if p.has(Effect::SensorDelay) {
+            p.sensors.delay
+        } else {
+            0.0
+        };
+        for (column, pick) in [
+            (2, (|m: &Measurement| m.p1) as fn(&Measurement) -> f64),
+            (3, |m: &Measurement| m.p2),
+        ] {
+            let series: Vec<(f64, f64)> = fine.iter().map(|(t, m)| (*t, pick(m))).collect();
+            let z = lagged(tau_p, rows[0][column], &series, rows.len(), delay);
+            for (row, z) in rows.iter_mut().zip(z) {
+                row[column] = z;
             }
-        };
-        let (y, p1, p2) = match rows.last() {
-            Some(&[_, y, p1, p2, _]) => (lag(y, s.y, wy), lag(p1, s.p1, wp), lag(p2, s.p2, wp)),
-            None => (s.y, s.p1, s.p2),
-        };
-        let r = signal[k];
-        // The controller acts on the sample before the recording's noise: on the bench the
-        // same LVDT feeds both, but noise fed back excites the nearly undamped oil-column
-        // resonance of a model without friction and leakage (30 bar RMS in P1 on the sweep,
-        // measured), a random disturbance no deterministic model can reproduce.
-        let u = match kp {
-            Some(kp) => (kp * (r - y)).clamp(-COMMAND_LIMIT, COMMAND_LIMIT),
-            None => r,
-        };
-        rows.push([r, y, p1, p2, u]);
-        [u, -u]
-    })?;
+        }
+    }
     Ok((experiment, rows))
 }
 

@@ -34,6 +34,7 @@ pub mod resonance;
 mod revision;
 mod search;
 mod selection;
+mod sensor_lag;
 pub mod signals;
 pub mod variants;
 

@@ -471,23 +471,27 @@ mod tests {
 
     /// With a form error (Rust bench, steps, seed 2: a 0.46 ms pressure-sensor lag and
     /// parameters a few percent off) the known model is recalibrated to the bench first,
-    /// and the form error's residual then left (gap 0.95, measured) stands beside each
-    /// model's: a 0.31 ms sensor delay stays told from the entrained air (ln B 1471 +- 17,
-    /// measured); an internal leakage 27 times the thesis's is told from SV1's null bias,
-    /// its closest rival, by far less (ln B 16.0 +- 3.5, its fit's gap 0.034 against the
-    /// bias's 0.206; measured, session 33). Until session 33 it read ln B 0.0 there: the
-    /// judge's recalibrated model re-fits SV2's flow and bias with the rest, which makes
-    /// SV2 its own valve, and the leakage's recalibration then moved SV1's null leakage
-    /// alone, while the bench's two valves leak alike (`recalibrate::set_fitted`).
+    /// and the form error's residual then left stands beside each model's: 4.27 noise
+    /// levels under the lag as drawn (session 64; 0.95 while the lag acted as 0.13 ms,
+    /// docs/gap.md). A 0.31 ms sensor delay stays told, from the entrained air, by
+    /// ln B 174 +- 2 (1471 +- 17 under the weak lag); an internal leakage 27 times the
+    /// thesis's fits to gap 0.048 against 0.208 for SV1's rated flow, its closest rival,
+    /// but by ln B 1.2 +- 0.3 only, not told (measured, session 64; ln B 16.0 +- 3.5 over
+    /// SV1's null bias under the weak lag, session 33). Until session 33 it read ln B 0.0
+    /// there: the judge's recalibrated model re-fits SV2's flow and bias with the rest,
+    /// which makes SV2 its own valve, and the leakage's recalibration then moved SV1's
+    /// null leakage alone, while the bench's two valves leak alike
+    /// (`recalibrate::set_fitted`).
     #[test]
     fn beside_a_form_error_a_delay_is_told_far_more_clearly_than_a_leakage() {
         let judge = |e: Effect| on_rust_steps(rivalry, true, 2, e);
         let delay = judge(Effect::SensorDelay);
-        assert!(delay.told() && delay.ln_bayes > 300.0, "{delay:?}");
-        assert!((0.5..1.5).contains(&delay.form_gap), "{delay:?}");
+        assert!(delay.told() && delay.ln_bayes > 100.0, "{delay:?}");
+        assert!((3.0..6.0).contains(&delay.form_gap), "{delay:?}");
         let leak = judge(Effect::InternalLeakage);
-        assert!(leak.told() && leak.ln_bayes < 50.0, "{leak:?}");
+        assert!(!leak.told() && leak.ln_bayes < 10.0, "{leak:?}");
         assert!(leak.hidden_gap < leak.rival_gap, "{leak:?}");
         assert!(leak.rival.starts_with("recalibrate"), "{leak:?}");
+        assert_eq!(leak.form_gap, delay.form_gap, "one bench: {leak:?}");
     }
 }

@@ -424,19 +424,23 @@ pub(super) fn delay_or_lag() -> (Setup, [String; 2], Asked) {
 }
 
 /// A payload hidden with model-form error (Rust bench, +-10 mm steps, seed 3: the LVDT
-/// lagging 0.25 ms, the bulk modulus 7 % low) is taken for the manifold's oil mass at
-/// step 1 by ln B 39; the run's later recalibrations, the moving mass among them, move
-/// the oil mass from 0.86 to 0.52. Asked again, both candidates take the moving mass
-/// to its +15 %; held at the model's value, the payload wins, and the continued run ends
-/// lower with the payload within 10 % of the truth (measured, session 26: 2.43 kg against
-/// 2.35). Since session 32 the effects the run added after the oil mass, the air and the
-/// valve asymmetry, are asked beside the two (`movers`); the payload still wins, by ln B
-/// 115.6 over the oil mass, and the run ends as before (2.43 kg, gap 0.97). Since session
-/// 33 (SV2 shares SV1's null leakage, `recalibrate::set_fitted`) the run adds no valve
-/// asymmetry, so the air alone is asked beside them, with the same answer (ln B 115.6,
-/// gap 0.97). About 4 CPU min.
+/// lagging 0.25 ms, the bulk modulus 7 % low). Since `hide`'s lags act as drawn (session
+/// 64) the payload is named at step 1 (3.00 kg against 2.35) by a hair over the
+/// manifold's oil mass; the run then adds dry friction (5.0 N, an effect not hidden) and
+/// recalibrates the bulk modulus. Asked again at the end, every candidate takes the bulk
+/// modulus to a bound of its recalibration, so it is held at the model's value; the
+/// payload wins clearly (ln B 82.8 over the oil mass) and the run stands, ending with the
+/// payload 2.39 kg (measured, session 64; about 4 CPU min).
+///
+/// Until session 63 the LVDT's lag acted as 0.02 ms; the oil mass was then taken at step 1
+/// by ln B 39, the later recalibrations moved it from 0.86 to 0.52, and the revision
+/// asked step 1 again and continued from the payload (2.43 kg, session 26). Neither the
+/// drawn lag nor a lag of 0.02 ms (measured, session 64: the oil mass then moves only
+/// to 0.72, which asks nothing again) takes that path on the new `hide`; a run continued
+/// from its rival is covered by
+/// `a_contested_step_is_asked_again_and_the_run_continued_from_a_clear_rival`.
 #[test]
-fn a_payload_taken_for_the_oil_mass_is_named_when_the_run_moved_the_oil_mass() {
+fn a_payload_asked_again_beside_the_oil_mass_stands_with_the_bound_recalibration_held() {
     let s = Setup::new(Simulator::Rust, true, &[Effect::Payload], 3);
     let records = [record(&s, Kind::Steps, 3)];
     let settings = crate::gap::Settings {
@@ -444,27 +448,30 @@ fn a_payload_taken_for_the_oil_mass_is_named_when_the_run_moved_the_oil_mass() {
         ..crate::gap::Settings::default()
     };
     let o = crate::gap::run_with(&s.known, &records, settings).expect("the workflow runs");
-    let r = o.revision.as_ref().expect("a step was asked again");
-    assert_eq!(r.step, 0, "{}", r.verdict);
-    assert_eq!(
-        r.between,
-        ["manifold_inertia", "payload", "entrained_air"],
-        "{}",
-        r.verdict
-    );
-    assert!(
-        r.reason.contains("moved its `manifold.inertia_scale`"),
-        "{}",
-        r.reason
-    );
-    assert_eq!(r.held, ["actuator.mass"], "{}", r.verdict);
-    assert!(r.revised, "{}", r.verdict);
     let first = o
         .steps
         .iter()
         .find(|s| s.kind == StepKind::Add)
         .expect("an effect");
     assert_eq!(first.name, "payload", "{}", o.verdict);
+    let r = o.revision.as_ref().expect("a step was asked again");
+    assert_eq!(r.step, 0, "{}", r.verdict);
+    assert!(
+        r.between.iter().any(|b| b == "manifold_inertia"),
+        "{}",
+        r.verdict
+    );
+    assert_eq!(r.held, ["fluid.bulk_modulus"], "{}", r.verdict);
+    assert!(!r.revised, "{}", r.verdict);
+    let d = &r.decision;
+    assert_eq!(d.winner.as_deref(), Some("payload"), "{}", d.verdict);
+    assert!(
+        d.preference
+            .as_ref()
+            .is_some_and(|p| p.ln_bayes_factor >= CLEAR_LN_BAYES),
+        "{}",
+        d.verdict
+    );
     let truth = s.drawn[0].1;
     let fitted = o.model.actuator.payload_mass;
     assert!(
@@ -478,11 +485,13 @@ fn a_payload_taken_for_the_oil_mass_is_named_when_the_run_moved_the_oil_mass() {
 /// between the volume and the oil mass from the known model, with SV1's null leakage,
 /// the viscous friction and the bulk modulus re-fitted beside each, both fits end on the
 /// bulk modulus's -15 %, which is held. Asked again without it but started from the
-/// first question's fits (`fit::fit_warm`), the oil mass fits to gap 3.96 with its scale
-/// 2.4 % under the truth and wins clearly; the volume is left near 19 (measured,
-/// session 27: the run then continues from the oil mass). Started cold, the same
-/// question ends with both near 24.6 (ln B 0.6) and the run named the volume (session
-/// 26). About 10 CPU s.
+/// first question's fits (`fit::fit_warm`), the oil mass fits to gap 12.4 with its scale
+/// 8 % under the truth (1.32 against 1.44); started cold, the same question leaves it at
+/// 25.1, above the volume's 24.1 (measured, session 64). The warm fit is then refused on
+/// the data it was not fitted on, and the volume stands: a miss of the run, counted in the
+/// full study. While `hide`'s pressure lag acted as 0.09 ms (until session 63) the warm
+/// fit reached 3.96 and won clearly, and the run continued from the oil mass (session 27).
+/// About 10 CPU s.
 #[test]
 fn a_question_asked_again_starts_from_the_fits_before_it() {
     let s = Setup::new(Simulator::Rust, true, &[Effect::ManifoldInertia], 1);
@@ -522,42 +531,38 @@ fn a_question_asked_again_starts_from_the_fits_before_it() {
         first.decision.verdict
     );
     let again = ask(&both, Start::Also(&first));
-    let d = &again.decision;
-    // started cold, the oil mass's fit ends in another basin (24.61, measured) and the
-    // question cannot tell the two apart
+    // started cold, the oil mass's fit ends in another basin (25.1, measured), above the
+    // volume's
     let cold = ask(&both, Start::Cold);
-    let oil = |a: &Asked| {
+    let gap_of = |a: &Asked, name: &str| {
         a.fits
             .iter()
-            .find(|f| f.name == "manifold_inertia")
+            .find(|f| f.name == name)
             .map(|f| f.gap)
             .expect("fitted")
     };
-    assert!(oil(&cold) > 2.0 * oil(&again), "{}", cold.decision.verdict);
-    assert_ne!(
-        cold.decision.winner.as_deref(),
-        Some("manifold_inertia"),
+    let oil = gap_of(&again, "manifold_inertia");
+    assert!(
+        gap_of(&cold, "manifold_inertia") > 1.8 * oil,
         "{}",
         cold.decision.verdict
     );
-    assert_eq!(
-        d.winner.as_deref(),
-        Some("manifold_inertia"),
-        "{}",
-        d.verdict
-    );
     assert!(
-        d.preference
-            .as_ref()
-            .is_some_and(|p| p.ln_bayes_factor >= CLEAR_LN_BAYES),
+        oil < gap_of(&cold, "manifold_volume"),
         "{}",
-        d.verdict
+        cold.decision.verdict
     );
-    let oil = &again.fits[again.won.expect("a winner")];
-    let fitted = oil.params.manifold.inertia_scale;
+    let fit = again
+        .fits
+        .iter()
+        .find(|f| f.name == "manifold_inertia")
+        .expect("fitted");
+    let fitted = fit.params.manifold.inertia_scale;
     let truth = s.drawn[0].1;
     assert!(
         (fitted / truth - 1.0).abs() < 0.1,
         "{fitted} against {truth}"
     );
+    // the held-out check then refuses it under the 0.40 ms pressure lag (above): a miss
+    // of the run, which this test of the warm start does not assert
 }

@@ -38,13 +38,14 @@ fn a_missing_volume_put_in_brings_every_signal_closer() {
 
 /// A first-order lag of the pressure sensors (0.4 ms, the form error's range, no
 /// candidate) taken up by the workflow's own bulk-modulus recalibration: the oil comes
-/// out softer and the pressures closer to the data, while the position, at its noise,
-/// does not move (measured: y 0.8389 -> 0.8391, P1 2.13 -> 1.95, P2 2.18 -> 1.96; an
-/// entrained-air fit does the same). Here the signals cannot show the trade, and the
-/// report claims none: the position reads a compliance only when it is large (the
-/// peer's seed 2, `describe`'s test).
+/// out softer and the pressures closer to the data, and the position is taken away from
+/// its record, which the report names as a trade that may stand for the sensors' own
+/// dynamics (measured: y 0.842 -> 0.895, P1 8.20 -> 5.33, P2 8.24 -> 5.27). Until
+/// session 63 `hide` ran the lag on the 1 kHz samples held at their new value, which
+/// made 0.4 ms act as about 0.1 ms: the pressures were then 2.13 noise levels off, the
+/// position did not move (0.8389 -> 0.8391) and the trade could not be seen.
 #[test]
-fn a_pressure_lag_taken_up_as_softer_oil_leaves_the_position_where_it_was() {
+fn a_pressure_lag_taken_up_as_softer_oil_takes_the_position_away() {
     let s = pressures_lagging(0.4e-3);
     let known = &s.known;
     let records = [record(&s, Kind::Steps, 1)];
@@ -65,13 +66,15 @@ fn a_pressure_lag_taken_up_as_softer_oil_leaves_the_position_where_it_was() {
     assert_eq!(
         by,
         vec![
-            ("y", (false, false)),
+            ("y", (true, false)),
             ("P1", (false, true)),
             ("P2", (false, true))
         ],
         "{signals:?}"
     );
-    assert!(!describe(&signals, "fluid.bulk_modulus").contains("further"));
+    let text = describe(&signals, "fluid.bulk_modulus");
+    assert!(text.contains("It took y further from the data"), "{text}");
+    assert!(text.contains("a lag of the pressure sensors"), "{text}");
 }
 
 /// The peer's steps with nothing hidden (seed 2, 0.31 ms pressure lag): the manifold
@@ -121,11 +124,13 @@ fn a_step_that_trades_the_position_for_the_pressures_is_called_so() {
 /// the optimiser's last residual, no simulation more), against the model the round
 /// starts from. On seed 2's steps with form error (a 0.46 ms lag of the pressure
 /// sensors) and a hidden dry friction of 27.6 N, the dry friction's own fit is bent to
-/// the pressures' lag (about 59 N) and takes the position away from its record (y 1.37 ->
-/// 1.49, measured in `hbench gap`'s first round): a trade, named with its figures, though
+/// the pressures' lag (209 N, its Stribeck velocity on its bound) and takes the position
+/// away from its record (y 1.37 -> 1.79, measured): a trade, named with its figures, though
 /// the effect is the one hidden. So a trade is reported and not judged (the module's
-/// words). The bulk modulus's recalibration, which leaves the position where it was,
-/// trades nothing. The fit's own signal gaps are `per_signal`'s.
+/// words). The bulk modulus's recalibration trades the position too (y 1.37 -> 1.40,
+/// measured since session 63, when `hide`'s lag became the 0.46 ms it names; before, it
+/// acted as 0.13 ms and the recalibration traded nothing). The fit's own signal gaps are
+/// `per_signal`'s.
 #[test]
 fn even_the_hidden_effect_trades_the_position_under_a_pressure_lag() {
     let s = Setup::new(Simulator::Rust, true, &[Effect::DryFriction], 2);
@@ -150,5 +155,9 @@ fn even_the_hidden_effect_trades_the_position_under_a_pressure_lag() {
         .find(|c| c.fitted.iter().any(|f| f.path == "fluid.bulk_modulus"))
         .expect("recalibrated");
     let softer = fit(&target, known, &softer, &[]);
-    assert_eq!(before.traded(&softer.signal_gaps), None);
+    let trade = before.traded(&softer.signal_gaps);
+    assert!(
+        trade.as_deref().is_some_and(|t| t.starts_with("y ")),
+        "{trade:?}"
+    );
 }
