@@ -20,6 +20,11 @@ by rule:
    listed as ambiguous and counted as the effect added. Rows with `named_in_order`
    (session 41 on) name as the study does, the recalibration in its place.
 4. Told = identifiable and ln B - 1.2816 sd >= 3 (`blind/rivals.rs`, `Rivalry::told`).
+5. Until session 64 `hide` ran the Rust bench's sensor lags far weaker than drawn
+   (docs/gap.md, session 63). A Rust case with a lag from a file of session 64 on is
+   another record than the same case before: it takes no judgement made before session 64,
+   neither from an older file nor from an --on-record file. The cases still from before
+   are counted apart (`weak lag`).
 
 Usage: tools/blind_tally.py [DIR] [--on-record FILE.json ...] [--cases OUT.json]
 
@@ -45,6 +50,24 @@ def session(path):
     return int(m.group(1)) if m else 0
 
 
+# the first session whose `hide` runs the Rust bench's sensor lags as drawn
+LAG_FIX_SESSION = 64
+
+
+def weak_lag(c, made_in):
+    """Whether case `c`, made in session `made_in`, is a Rust record whose sensor lag acted
+    weaker than drawn."""
+    form = c.get("form") or {}
+    lag = form.get("sensors.pressure_lag", 0) > 0 or form.get("sensors.lvdt_lag", 0) > 0
+    return c.get("simulator", "rust") == "rust" and lag and made_in < LAG_FIX_SESSION
+
+
+def judged_on_another_record(c, made_in, judged_in):
+    """A judgement of session `judged_in` does not hold for case `c` of session `made_in`
+    when the lag fix lies between them."""
+    return weak_lag(c, judged_in) and not weak_lag(c, made_in)
+
+
 def key(sim, experiment, seed, hidden):
     return (sim, experiment, int(seed), hidden)
 
@@ -61,7 +84,7 @@ def load(directory):
             k = key(c.get("simulator", "rust"), c["experiment"], c["seed"],
                     c["hidden"][0] if c["hidden"] else "none")
             prev = cases.get(k)
-            if prev:
+            if prev and not judged_on_another_record(c, session(f), prev["_session"]):
                 for field in ("identifiable", "rivalry", "rivalry_on_record"):
                     if c.get(field) is None and prev.get(field) is not None:
                         c[field] = prev[field]
@@ -139,13 +162,18 @@ def main():
         for c in json.load(open(f)):
             k = key(c.get("simulator", "rust"), c["experiment"], c["seed"],
                     c["hidden"][0] if c["hidden"] else "none")
-            if k in cases and c.get("rivalry_on_record") is not None:
+            if (k in cases and c.get("rivalry_on_record") is not None
+                    and not judged_on_another_record(cases[k], cases[k]["_session"], session(f))):
                 cases[k]["rivalry_on_record"] = c["rivalry_on_record"]
     single = [c for k, c in cases.items() if k[3] != "none"]
     none = [c for k, c in cases.items() if k[3] == "none"]
     print(f"cases: {len(cases)} ({len(single)} with one effect hidden, {len(none)} with nothing hidden)")
     print(f"nothing hidden, nothing added: {rate(sum(not c['named'] for c in none), len(none))}")
     print(f"named first over all single-effect cases: {rate(sum(first_right(c) for c in single), len(single))}")
+    weak = [c for c in cases.values() if weak_lag(c, c["_session"])]
+    rust = [c for c in cases.values() if c.get("simulator", "rust") == "rust"]
+    print(f"weak lag: {len(weak)} of the {len(rust)} Rust cases were made before session "
+          f"{LAG_FIX_SESSION} with a sensor lag, which then acted weaker than drawn")
     report(cases, "rivalry", "Transplanted signature (blind/rivals.rs)")
     report(cases, "rivalry_on_record", "The bench's own record (blind/on_record.rs)")
     if ambiguous:

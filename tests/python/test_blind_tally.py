@@ -83,3 +83,27 @@ def test_a_set_re_run_whole_later_wins_over_an_older_re_run_row(tmp_path: Path):
     again = [case(["manifold_volume"], ["manifold_volume"], TOLD)]
     (tmp_path / "set_session43.json").write_text(json.dumps(again))
     assert "named first 1 of 1 (100 %)" in run(tmp_path)
+
+
+def test_a_case_made_under_the_drawn_lag_keeps_no_judgement_of_the_weak_one(tmp_path: Path):
+    lag = {"sensors.pressure_lag": 4.0e-4, "sensors.lvdt_lag": 0.0}
+    none = {"sensors.pressure_lag": 0.0, "sensors.lvdt_lag": 0.0}
+    old = [case(["payload"], ["manifold_volume"], TOLD, form=lag),
+           case(["dry_friction"], ["viscous_friction"], TOLD, form=none)]
+    (tmp_path / "set_session40.json").write_text(json.dumps(old))
+    text = run(tmp_path)
+    assert "weak lag: 1 of the 2 Rust cases" in text
+    assert "told 2 of 2 judged" in text
+    # both run again after the lag fix, neither judged: the lagged case's record changed and
+    # it keeps no judgement; the case without a lag keeps its own
+    again = [dict(case(["payload"], ["payload"], form=lag), identifiable=None),
+             dict(case(["dry_friction"], ["dry_friction"], form=none), identifiable=None)]
+    (tmp_path / "set_session64.json").write_text(json.dumps(again))
+    (tmp_path / "on_record").mkdir()
+    judged = tmp_path / "on_record" / "told_session41.json"
+    judged.write_text(json.dumps([case(["payload"], ["payload"], TOLD, form=lag,
+                                       rivalry_on_record=TOLD)]))
+    text = run(tmp_path, "--on-record", str(judged))
+    assert "weak lag: 0 of the 2 Rust cases" in text
+    assert "Transplanted signature (blind/rivals.rs): told 1 of 1 judged; named first 1 of 1" in text
+    assert "own record" not in text
