@@ -338,7 +338,7 @@ pub fn ask(
         pairs.iter().filter(|(s, _)| s.worth_adding(gap)).collect();
     let judge = Judge::new(target, record_names, model, &carried, progress);
     let mut refused = Vec::new();
-    let won = selection::select(eligible, &judge, &mut refused).map(|(chosen, v)| {
+    let won = selection::select(eligible, &before, &judge, &mut refused).map(|(chosen, v)| {
         let k = pairs
             .iter()
             .position(|p| std::ptr::eq(p, chosen))

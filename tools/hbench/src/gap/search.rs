@@ -191,7 +191,7 @@ impl<'t> Search<'t> {
             &self.carried,
             self.progress,
         );
-        let best = selection::select(eligible, &judge, &mut self.refusals);
+        let best = selection::select(eligible, &before, &judge, &mut self.refusals);
         let Some(((_, winner), validated)) = best else {
             self.rounds.push(round);
             self.rejected = scored.iter().map(|(s, _)| s.clone()).collect();

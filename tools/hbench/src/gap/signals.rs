@@ -23,10 +23,17 @@
 //! One candidate is judged by its signals: a delay of every sensor alike must be seen
 //! by each signal it takes further from the data (`common_delay`). That is the claim of
 //! the effect itself, not a rule on fits that trade.
+//!
+//! And the position, every record's y, has its own say in a round (`Baseline::
+//! position_ln_bayes`, `selection::position_first`): a recalibration it clearly prefers
+//! to the effect the pooled score would add is taken first, because a transducer lag
+//! that no candidate holds can carry the pooled score while a parameter a few percent
+//! off is left on y.
 
 use hbmodel::Params;
 use serde::Serialize;
 
+use super::evidence::{correlation_time, score};
 use super::fit::Target;
 use super::MIN_IMPROVEMENT;
 
@@ -125,18 +132,82 @@ pub(super) fn paired(
 pub struct Baseline {
     labels: Vec<(String, &'static str)>,
     gaps: Vec<f64>,
+    /// Each series' samples, in `labels`' order.
+    lens: Vec<usize>,
+    /// The independent samples of the position's residual (every record's y together)
+    /// under the model: what a chi-square drop on y alone is worth (`position_ln_bayes`).
+    position_effective: f64,
 }
 
 impl Baseline {
     /// `model`'s signal gaps on `target`; none when it cannot be simulated (then no fit
     /// is found to trade).
     pub fn of(target: &Target, names: &[String], model: &Params) -> Self {
-        Baseline {
-            labels: labels(target, names),
-            gaps: target
-                .residuals(model)
-                .map_or_else(Vec::new, |r| target.block_gaps(&r)),
+        let labels = labels(target, names);
+        let lens = target.blocks();
+        let Some(r) = target.residuals(model) else {
+            return Baseline {
+                labels,
+                lens,
+                ..Baseline::default()
+            };
+        };
+        let mut position_effective = 0.0;
+        let mut at = 0;
+        for ((_, signal), &n) in labels.iter().zip(&lens) {
+            if *signal == "y" && n > 0 {
+                position_effective += n as f64 / correlation_time(&r.as_slice()[at..at + n]);
+            }
+            at += n;
         }
+        Baseline {
+            gaps: target.block_gaps(&r),
+            labels,
+            lens,
+            position_effective,
+        }
+    }
+
+    /// How much more likely the position (y, every record's) is under a fit whose
+    /// signal gaps are `a` than under one whose gaps are `b` (`fit::Fit::signal_gaps`),
+    /// as 2 ln B in the position's own independent samples (`evidence::score` with no
+    /// price: the two fits are compared, not nested); 0 when either is not such a list.
+    pub fn position_ln_bayes(&self, a: &[f64], b: &[f64]) -> f64 {
+        if a.len() != self.lens.len() || b.len() != self.lens.len() {
+            return 0.0;
+        }
+        let chi2 = |g: &[f64]| -> f64 {
+            self.labels
+                .iter()
+                .zip(&self.lens)
+                .zip(g)
+                .filter(|(((_, signal), _), _)| *signal == "y")
+                .map(|((_, &n), &gap)| gap * gap * n as f64)
+                .sum()
+        };
+        let (ca, cb) = (chi2(a), chi2(b));
+        if ca <= 0.0 || cb <= 0.0 {
+            return 0.0;
+        }
+        score(cb, ca, self.position_effective, 0.0)
+    }
+
+    /// Every record's position (y) at or below `level` noise levels under a fit whose
+    /// signal gaps are `gaps`; false when `gaps` is not such a list.
+    pub fn position_within(&self, gaps: &[f64], level: f64) -> bool {
+        gaps.len() == self.labels.len()
+            && self
+                .labels
+                .iter()
+                .zip(gaps)
+                .filter(|((_, signal), _)| *signal == "y")
+                .all(|(_, &g)| g <= level)
+    }
+
+    /// The model's own signal gaps (`block_gaps`' order); empty when it cannot be
+    /// simulated.
+    pub fn gaps(&self) -> &[f64] {
+        &self.gaps
     }
 
     /// What a fit whose signal gaps are `after` (`fit::Fit::signal_gaps`) traded: the

@@ -161,3 +161,35 @@ fn even_the_hidden_effect_trades_the_position_under_a_pressure_lag() {
         "{trade:?}"
     );
 }
+
+/// The position's evidence reads the position alone: two records' y series, each in its
+/// samples, against the independent samples the position's residual is worth; the
+/// pressures, however far off, weigh nothing in it.
+#[test]
+fn the_position_is_judged_on_its_own_series() {
+    let label = |r: &str, s: &'static str| (r.to_string(), s);
+    let before = Baseline {
+        labels: vec![
+            label("steps", "y"),
+            label("steps", "P1"),
+            label("chirp", "y"),
+            label("chirp", "P1"),
+        ],
+        gaps: vec![2.0, 8.0, 1.0, 8.0],
+        lens: vec![300, 300, 100, 100],
+        position_effective: 40.0,
+    };
+    // y's chi-square 300 * 1 + 100 * 1 against 300 * 4 + 100 * 1: ln B = 20 ln(1300/400)
+    let a = [1.0, 8.0, 1.0, 1.0];
+    let b = [2.0, 1.0, 1.0, 1.0];
+    let ln_b = before.position_ln_bayes(&a, &b) / 2.0;
+    assert!(
+        (ln_b - 20.0 * (1300.0f64 / 400.0).ln()).abs() < 1e-9,
+        "{ln_b}"
+    );
+    assert!((before.position_ln_bayes(&b, &a) + 2.0 * ln_b).abs() < 1e-9);
+    assert_eq!(before.position_ln_bayes(&a, &b[..3]), 0.0);
+    assert!(before.position_within(&a, 1.1));
+    assert!(!before.position_within(&[1.0, 0.5, 1.2, 0.5], 1.1));
+    assert!(!before.position_within(&a[..2], 1.1));
+}
