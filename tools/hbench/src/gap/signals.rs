@@ -25,10 +25,10 @@
 //! the effect itself, not a rule on fits that trade.
 //!
 //! And the position, every record's y, has its own say in a round (`Baseline::
-//! position_ln_bayes`, `selection::position_first`): a recalibration it clearly prefers
-//! to the effect the pooled score would add is taken first, because a transducer lag
-//! that no candidate holds can carry the pooled score while a parameter a few percent
-//! off is left on y.
+//! position_ln_bayes`, `selection::position_first`): a recalibration that explains it
+//! within its noise, and that it clearly prefers to the effect the pooled score would
+//! add, is taken first, because a transducer lag that no candidate holds can carry the
+//! pooled score while a parameter a few percent off is left on y.
 
 use hbmodel::Params;
 use serde::Serialize;
@@ -155,8 +155,9 @@ impl Baseline {
         let mut position_effective = 0.0;
         let mut at = 0;
         for ((_, signal), &n) in labels.iter().zip(&lens) {
-            if *signal == "y" && n > 0 {
-                position_effective += n as f64 / correlation_time(&r.as_slice()[at..at + n]);
+            let series = r.as_slice().get(at..at + n).filter(|x| !x.is_empty());
+            if let (true, Some(series)) = (*signal == "y", series) {
+                position_effective += n as f64 / correlation_time(series);
             }
             at += n;
         }
